@@ -1,0 +1,3 @@
+from jgrounding.cli import main
+
+raise SystemExit(main())

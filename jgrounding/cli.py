@@ -1,0 +1,160 @@
+"""Command line: ``python -m jgrounding "User seems sad; respond calmly" [options]``.
+
+Grounds the text to an (intent, intensity) tuple, samples K trajectories, and writes
+- ``tendons.png``: the tendon commands (sample 0 bold, the others faint),
+- ``motion.gif`` and ``posture.png``: the simulated trunk (MuJoCo renderer, matplotlib fallback),
+- ``commands.csv`` / ``commands.json``: the command stream of sample 0 at the control rate, with units
+  and bounds in a header, ready for a motor controller; ``samples.npy``: all K trajectories.
+
+``--intent/--intensity`` skip the text and sample a tuple directly. ``--jsonl`` prints one JSON object
+per event for scripts; ``--quiet`` prints only the output folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from jgrounding.vocabulary import INTENSITIES, INTENTS
+
+MAX_SAMPLES = 256
+MAX_TEXT_CHARS = 4000
+
+
+def _positive_samples(text: str) -> int:
+    try:
+        k = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--samples must be an integer in 1..{MAX_SAMPLES}, got {text!r}")
+    if not 1 <= k <= MAX_SAMPLES:
+        raise argparse.ArgumentTypeError(f"--samples must be in 1..{MAX_SAMPLES}, got {k}")
+    return k
+
+
+def _seed(text: str) -> int:
+    try:
+        s = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--seed must be a non-negative integer, got {text!r}")
+    if not 0 <= s < 2**32:
+        raise argparse.ArgumentTypeError(f"--seed must be in 0..2**32-1, got {s}")
+    return s
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m jgrounding",
+        description="Ground an open-vocabulary social response into soft-trunk tendon actuation.")
+    p.add_argument("text", nargs="?", help="the response to ground, e.g. 'User seems sad; respond calmly'")
+    p.add_argument("--intent", choices=INTENTS, help="sample this intent directly (skips grounding)")
+    p.add_argument("--intensity", choices=INTENSITIES, help="intensity to use with --intent")
+    p.add_argument("--samples", type=_positive_samples, default=8, metavar="K",
+                   help=f"number of trajectories to sample (1..{MAX_SAMPLES}, default 8)")
+    p.add_argument("--out", default="grounding_out", metavar="DIR", help="output folder (default grounding_out)")
+    p.add_argument("--backend", choices=("embedded", "mllm"), default="embedded",
+                   help="semantic reduction backend (default embedded; mllm needs JGROUNDING_MLLM_URL)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    p.add_argument("--sampler", choices=("euler", "midpoint", "rk4"), default="euler")
+    p.add_argument("--steps", type=int, default=50, choices=(1, 2, 4, 8, 16, 25, 50, 100),
+                   help="flow integration steps S (default 50)")
+    p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--quiet", action="store_true", help="print only the output folder")
+    mode.add_argument("--jsonl", action="store_true", help="print JSON lines (one per event)")
+    return p
+
+
+class _Printer:
+    def __init__(self, quiet: bool, jsonl: bool):
+        self.quiet, self.jsonl = quiet, jsonl
+
+    def __call__(self, event: str, text: str, **data):
+        if self.jsonl:
+            print(json.dumps({"event": event, **data}), flush=True)
+        elif not self.quiet:
+            print(text, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    import jax
+    import numpy as np
+
+    from jgrounding import export, plotting, vocabulary
+    from jgrounding.sampling import sample
+
+    say = _Printer(args.quiet, args.jsonl)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    if args.intent is not None:
+        intent, intensity = args.intent, args.intensity or "moderate"
+        say("tuple", f"tuple: ({intent}, {intensity}) [given]", intent=intent, intensity=intensity)
+        confidence = None
+    else:
+        from jgrounding.semantics import ground
+
+        t0 = time.perf_counter()
+        g = ground(args.text, backend=args.backend)
+        intent, intensity, confidence = g.intent, g.intensity, float(g.confidence)
+        say("tuple", f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
+            f"backend {g.backend}  [{1e3 * (time.perf_counter() - t0):.0f} ms]",
+            intent=intent, intensity=intensity, confidence=confidence, backend=g.backend,
+            confident=bool(getattr(g, "confident", True)))
+        if not getattr(g, "confident", True):
+            say("warning", "warning: low confidence; the tuple above is a best guess "
+                f"({getattr(g, 'reason', '')})", reason=str(getattr(g, "reason", "")))
+
+    t0 = time.perf_counter()
+    u = sample(jax.random.key(args.seed), intent, intensity, num_samples=args.samples,
+               sampler=args.sampler, steps=args.steps)
+    u = np.asarray(u).reshape(-1, 150, 4)
+    say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]} "
+        f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
+
+    from jgrounding.trunk import CONTROL_DT
+
+    meta = export.tuple_meta(vocabulary.intent_index(intent), vocabulary.intensity_index(intensity),
+                             text=args.text, seed=args.seed, sample=0, confidence=confidence)
+    files = {
+        "tendons": plotting.tendon_figure(u, out / "tendons.png", title=f"{intent} / {intensity}"),
+        "csv": str(export.write_atomic(out / "commands.csv",
+                                       export.command_stream_csv(u[0], control_dt=CONTROL_DT, meta=meta))),
+        "json": str(export.write_atomic(out / "commands.json",
+                                        export.command_stream_json(u[0], control_dt=CONTROL_DT, meta=meta))),
+    }
+    buf = __import__("io").BytesIO()
+    np.save(buf, u)
+    files["samples"] = str(export.write_atomic(out / "samples.npy", buf.getvalue()))
+    if not args.no_render:
+        from jgrounding import render
+
+        t0 = time.perf_counter()
+        files["posture"] = str(render.render_posture(u[0], out / "posture.png"))
+        files["motion"] = str(render.render_motion(u[0], out / "motion.gif"))
+        say("render", f"rendered motion [{time.perf_counter() - t0:.1f} s]")
+    for name, path in files.items():
+        say("file", f"  {name:8s} {path}", kind=name, path=path)
+    if args.quiet:
+        print(out)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.intent is None and args.intensity is not None:
+        parser.error("--intensity needs --intent (or give a text to ground)")
+    if args.intent is None:
+        if args.text is None or not args.text.strip():
+            parser.error("give a response text to ground, or --intent NAME "
+                         f"(valid intents: {', '.join(INTENTS)})")
+        if len(args.text) > MAX_TEXT_CHARS:
+            parser.error(f"text is {len(args.text)} characters; at most {MAX_TEXT_CHARS} are accepted")
+    try:
+        return run(args)
+    except (ValueError, TypeError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1

@@ -1,0 +1,60 @@
+"""Matplotlib figures shared by the CLI and the experiments (headless, Agg backend)."""
+
+from __future__ import annotations
+
+import io
+import os
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+TENDON_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:orange")
+TENDON_LABELS = ("tendon 0 (toward user)", "tendon 1 (left)", "tendon 2 (away)", "tendon 3 (right)")
+
+
+def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = True, lw: float = 1.6):
+    """Draw tendon commands ``(T, 4)`` or samples ``(K, T, 4)`` on ``ax``; reference dashed."""
+    u = np.asarray(u)
+    samples = u[None] if u.ndim == 2 else u
+    tau = np.linspace(0.0, 1.0, samples.shape[-2])
+    for k, s in enumerate(samples):
+        for j in range(s.shape[-1]):
+            ax.plot(tau, s[:, j], color=TENDON_COLORS[j], alpha=alpha, lw=lw,
+                    label=TENDON_LABELS[j] if (legend and k == 0) else None)
+    if reference is not None:
+        ref = np.asarray(reference)
+        for j in range(ref.shape[-1]):
+            ax.plot(tau, ref[:, j], color=TENDON_COLORS[j], ls="--", lw=1.2)
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xlabel("execution time τ")
+    ax.set_ylabel("tendon pull u")
+    if legend:
+        ax.legend(fontsize=7, loc="upper right")
+    return ax
+
+
+def save(fig, path: str | os.PathLike, dpi: int = 110) -> str:
+    """Save a figure atomically as PNG and close it."""
+    from jgrounding.export import write_atomic
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    write_atomic(path, buf.getvalue())
+    return str(path)
+
+
+def tendon_figure(u, path, *, title: str = "", reference=None):
+    """One-panel PNG of tendon commands (samples overlaid faintly when ``u`` is ``(K, T, 4)``)."""
+    u = np.asarray(u)
+    fig, ax = plt.subplots(figsize=(6.4, 3.4))
+    if u.ndim == 3 and u.shape[0] > 1:
+        plot_tendons(ax, u[1:], alpha=0.18, legend=False, lw=0.8)
+        plot_tendons(ax, u[0], reference=reference)
+    else:
+        plot_tendons(ax, u.reshape(-1, *u.shape[-2:])[0], reference=reference)
+    ax.set_title(title, fontsize=9)
+    return save(fig, path)

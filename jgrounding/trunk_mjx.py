@@ -1,0 +1,65 @@
+"""MJX engine for :func:`jgrounding.trunk.rollout`: ``jit(vmap(scan over control steps))``.
+
+Each control step holds the command for ``SUBSTEPS`` physics steps (an inner ``lax.scan``); the outer
+scan records the backbone, tendon lengths and touch force at the end of each control step. One
+compiled function per (batch size, contact) pair, cached; call :func:`enable_compilation_cache`
+(done by the experiments and the test suite) to make compilation a one-time cost across processes.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from mujoco import mjx
+
+from jgrounding import trunk
+
+CACHE_DIR = Path(__file__).resolve().parent.parent / ".cache" / "jax"
+
+
+def enable_compilation_cache(path: str | Path = CACHE_DIR) -> None:
+    """Turn on JAX's persistent compilation cache (compiled MJX rollouts survive the process)."""
+    Path(path).mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+
+@functools.lru_cache(maxsize=2)
+def _model(contact: bool):
+    m = trunk.load_model(None, contact)
+    body_ids = np.array([m.body(f"seg{i}").id for i in range(trunk.NUM_SEGMENTS)])
+    return m, mjx.put_model(m), body_ids, m.site("tip").id
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled(contact: bool):
+    m, mx, body_ids, tip_id = _model(contact)
+
+    def one(u):  # u: (T, 4)
+        d0 = mjx.make_data(mx)
+
+        def substep(d, _):
+            return mjx.step(mx, d), None
+
+        def control_step(d, ctrl):
+            d = d.replace(ctrl=ctrl)
+            d, _ = jax.lax.scan(substep, d, None, length=trunk.SUBSTEPS)
+            points = jnp.concatenate([d.xpos[body_ids], d.site_xpos[tip_id][None]], axis=0)
+            return d, (points, d.ten_length, d.sensordata[-1])
+
+        _, out = jax.lax.scan(control_step, d0, u)
+        return out
+
+    return jax.jit(jax.vmap(one))
+
+
+def rollout_mjx(u: np.ndarray, contact: bool = True) -> trunk.Rollout:
+    """``(B, T, 4)`` validated commands -> :class:`trunk.Rollout` via MJX (float32)."""
+    fn = _compiled(contact)
+    points, tendon, touch = jax.device_get(fn(jnp.asarray(u, jnp.float32)))
+    return trunk._finish(np.asarray(points, np.float64), np.asarray(tendon, np.float64),
+                         np.asarray(touch, np.float64))
