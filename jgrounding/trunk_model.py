@@ -39,7 +39,7 @@ TRUNK_LENGTH = 0.70  # m
 BASE_HEIGHT = 1.10  # m, the trunk's root
 BASE_RADIUS, TIP_RADIUS = 0.045, 0.014  # m
 TIMESTEP = 1.0 / 120.0  # 1/60 s blows up (slides + light tip); 1/120 matches 1/240 within 1 mm
-MAX_TENDON_FORCE = 28.0  # N at u = 1
+MAX_TENDON_FORCE = 14.0  # N at u = 1: a strong curl, not a full coil
 ROOT_STIFFNESS, TIP_STIFFNESS = 7.0, 0.5  # N m / rad, geometric taper
 ROOT_DAMPING, TIP_DAMPING = 0.35, 0.03
 SLIDE_STIFFNESS = 2500.0  # N / m
