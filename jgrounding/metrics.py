@@ -1,0 +1,88 @@
+"""Metrics of Sec. IV-A.3 (SPEC §6) and the reference baselines that bracket them.
+
+- ``rms``: RMS_j = sqrt(mean over T and N_u of (u_hat - u_tar)^2), over the last two axes.
+- ``success_rate``: fraction with RMS <= tau (tau_rms = 0.35).
+- ``pairwise_diversity``: mean pairwise RMS of K samples (D_j); Div is its mean over held-out tuples.
+- ``reference_baselines``: the oracle (replay a random training realization of the same tuple: the
+  success ceiling) and wrong-intent replays (the floor), plus adjacent-intensity confusion.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+TAU_RMS = 0.35
+TAUS = (0.25, 0.30, 0.35, 0.40, 0.45)
+
+
+def rms(a, b) -> jax.Array:
+    """Normalized RMS distance over the last two axes ``(..., T, N_u)`` -> ``(...)``."""
+    return jnp.sqrt(jnp.mean((jnp.asarray(a) - jnp.asarray(b)) ** 2, axis=(-2, -1)))
+
+
+def success_rate(rms_values, tau: float = TAU_RMS) -> jax.Array:
+    """Fraction of RMS values <= tau, over the last axis."""
+    return jnp.mean(jnp.asarray(rms_values) <= tau, axis=-1)
+
+
+@jax.jit
+def pairwise_diversity(samples) -> jax.Array:
+    """Mean pairwise RMS of samples ``(..., K, T, N_u)`` -> ``(...)`` (D_j of the paper)."""
+    k = samples.shape[-3]
+    d = rms(samples[..., :, None, :, :], samples[..., None, :, :, :])  # (..., K, K)
+    iu = np.triu_indices(k, 1)
+    return jnp.mean(d[..., iu[0], iu[1]], axis=-1)
+
+
+def _replay(rng, library, pick_pool) -> np.ndarray:
+    """For each held-out record, the u of one training record drawn from ``pick_pool(j)``."""
+    out = np.empty_like(library.heldout.u)
+    for j in range(len(library.heldout)):
+        pool = pick_pool(j)
+        out[j] = library.train.u[rng.choice(pool)]
+    return out
+
+
+def reference_baselines(library, seed: int = 0, draws: int = 20, taus=TAUS) -> dict:
+    """Success of replayed library trajectories against the held-out targets, mean and std over draws.
+
+    ``oracle``: a training realization of the same tuple. ``wrong_intent_same_intensity`` /
+    ``wrong_intent_any_intensity``: one of a different intent. ``adjacent_intensity``: the same intent
+    one intensity level away. Returns ``{name: {"success": {tau: (mean, std)}, "rms": (mean, std)}}``.
+    """
+    tr, ho = library.train, library.heldout
+    pools = {
+        "oracle": lambda j: np.flatnonzero((tr.intent == ho.intent[j]) & (tr.intensity == ho.intensity[j])),
+        "wrong_intent_same_intensity": lambda j: np.flatnonzero((tr.intent != ho.intent[j])
+                                                                & (tr.intensity == ho.intensity[j])),
+        "wrong_intent_any_intensity": lambda j: np.flatnonzero(tr.intent != ho.intent[j]),
+        "adjacent_intensity": lambda j: np.flatnonzero((tr.intent == ho.intent[j])
+                                                       & (np.abs(tr.intensity - ho.intensity[j]) == 1)),
+    }
+    rng = np.random.default_rng(seed)
+    out = {}
+    for name, pool in pools.items():
+        r = np.stack([np.asarray(rms(_replay(rng, library, pool), ho.u)) for _ in range(draws)])  # (draws, 64)
+        out[name] = {
+            "success": {float(t): (float((r <= t).mean(1).mean()), float((r <= t).mean(1).std())) for t in taus},
+            "rms": (float(r.mean()), float(r.mean(1).std())),
+        }
+    return out
+
+
+def within_between(library) -> dict[str, np.ndarray]:
+    """All pairwise RMS distances among library records, grouped: within tuple, between intents at the
+    same intensity, adjacent intensity of the same intent (for the library card's histogram)."""
+    u = np.concatenate([library.train.u, library.heldout.u])
+    m = np.concatenate([library.train.intent, library.heldout.intent])
+    z = np.concatenate([library.train.intensity, library.heldout.intensity])
+    d = np.asarray(jax.jit(lambda x: rms(x[:, None], x[None]))(u))
+    iu = np.triu_indices(len(u), 1)
+    d, mi, mj, zi, zj = d[iu], m[iu[0]], m[iu[1]], z[iu[0]], z[iu[1]]
+    return {
+        "within tuple": d[(mi == mj) & (zi == zj)],
+        "different intent, same intensity": d[(mi != mj) & (zi == zj)],
+        "same intent, adjacent intensity": d[(mi == mj) & (np.abs(zi - zj) == 1)],
+    }
