@@ -1,0 +1,99 @@
+"""Rectified flow (Sec. III-C, Eqs. rf_loss and rf_inference) and the DDPM baseline, as pure functions.
+
+Convention of the paper: lambda = 0 is noise, lambda = 1 is data; c_lambda = (1 - lambda) eps + lambda c
+and the velocity target is c - eps. ``velocity(x, t)`` below is any function of a flat batch.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+SAMPLERS = ("euler", "midpoint", "rk4")
+DDPM_SAMPLERS = ("ancestral", "ddim")
+DDPM_STEPS = 50  # diffusion steps; the ancestral sampler uses all of them (Table I: S = 50)
+
+
+def rf_loss(velocity, c, key):
+    """Eq. (rf_loss): E || v(c_lambda, lambda) - (c - eps) ||^2 for a batch ``c`` ``(B, D)``."""
+    k_eps, k_lam = jax.random.split(key)
+    eps = jax.random.normal(k_eps, c.shape)
+    lam = jax.random.uniform(k_lam, c.shape[:1])
+    c_lam = (1.0 - lam[:, None]) * eps + lam[:, None] * c
+    return jnp.mean((velocity(c_lam, lam) - (c - eps)) ** 2)
+
+
+def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler"):
+    """Eq. (rf_inference): integrate dc/dlambda = v from lambda = 0 (noise ``eps``) to 1 in ``steps``."""
+    dt = 1.0 / steps
+
+    def v(x, t):
+        return velocity(x, jnp.full(x.shape[:1], t))
+
+    def body(k, x):
+        t = k * dt
+        if sampler == "euler":
+            return x + dt * v(x, t)
+        if sampler == "midpoint":
+            return x + dt * v(x + 0.5 * dt * v(x, t), t + 0.5 * dt)
+        k1 = v(x, t)
+        k2 = v(x + 0.5 * dt * k1, t + 0.5 * dt)
+        k3 = v(x + 0.5 * dt * k2, t + 0.5 * dt)
+        k4 = v(x + dt * k3, t + dt)
+        return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    if sampler not in SAMPLERS:
+        raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(SAMPLERS)}")
+    return jax.lax.fori_loop(0, steps, body, eps)
+
+
+def ddpm_schedule(steps: int = DDPM_STEPS):
+    """Cosine noise schedule (Nichol & Dhariwal) -> (betas, alphas, alpha_bars), each ``(steps,)``."""
+    s = 0.008
+    t = jnp.arange(steps + 1) / steps
+    f = jnp.cos((t + s) / (1 + s) * jnp.pi / 2) ** 2
+    alpha_bar = f / f[0]
+    betas = jnp.clip(1.0 - alpha_bar[1:] / alpha_bar[:-1], 1e-5, 0.999)
+    alphas = 1.0 - betas
+    return betas, alphas, jnp.cumprod(alphas)
+
+
+def ddpm_loss(noise_pred, c, key, steps: int = DDPM_STEPS):
+    """Epsilon-prediction loss; ``noise_pred(x_t, t)`` gets t = step / steps in [0, 1)."""
+    _, _, abar = ddpm_schedule(steps)
+    k_eps, k_t = jax.random.split(key)
+    eps = jax.random.normal(k_eps, c.shape)
+    i = jax.random.randint(k_t, c.shape[:1], 0, steps)
+    a = abar[i][:, None]
+    x_t = jnp.sqrt(a) * c + jnp.sqrt(1 - a) * eps
+    return jnp.mean((noise_pred(x_t, i / steps) - eps) ** 2)
+
+
+def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "ancestral", sample_steps=None):
+    """Reverse diffusion from ``x_T``: ``ancestral`` (all ``steps``) or ``ddim`` (``sample_steps``, eta 0)."""
+    betas, alphas, abar = ddpm_schedule(steps)
+    if sampler == "ancestral":
+        def body(k, carry):
+            x, key = carry
+            i = steps - 1 - k
+            key, sub = jax.random.split(key)
+            eps = noise_pred(x, jnp.full(x.shape[:1], i / steps))
+            mean = (x - betas[i] / jnp.sqrt(1 - abar[i]) * eps) / jnp.sqrt(alphas[i])
+            var = betas[i] * (1 - jnp.where(i > 0, abar[i - 1], 1.0)) / (1 - abar[i])
+            noise = jnp.where(i > 0, 1.0, 0.0) * jax.random.normal(sub, x.shape)
+            return mean + jnp.sqrt(var) * noise, key
+
+        return jax.lax.fori_loop(0, steps, body, (x_T, key))[0]
+    if sampler != "ddim":
+        raise ValueError(f"unknown DDPM sampler {sampler!r}; valid: {', '.join(DDPM_SAMPLERS)}")
+    n = sample_steps or steps
+    idx = jnp.round(jnp.linspace(steps - 1, 0, n)).astype(jnp.int32)
+
+    def body(k, x):
+        i = idx[k]
+        prev = jnp.where(k + 1 < n, abar[idx[jnp.minimum(k + 1, n - 1)]], 1.0)
+        eps = noise_pred(x, jnp.full(x.shape[:1], i / steps))
+        x0 = (x - jnp.sqrt(1 - abar[i]) * eps) / jnp.sqrt(abar[i])
+        return jnp.sqrt(prev) * x0 + jnp.sqrt(1 - prev) * eps
+
+    return jax.lax.fori_loop(0, n, body, x_T)

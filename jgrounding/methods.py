@@ -1,0 +1,209 @@
+"""The five methods of Table II behind one interface: ``train`` and ``generate``.
+
+Name pattern *Semantic Condition + Actuation Representation + Generator*:
+``raw_dense_cnn``, ``tuple_dense_cnn``, ``tuple_spline_cnn``, ``tuple_spline_ddpm``, ``tuple_spline_rf``.
+Tuple conditioning is (E_m(m), E_z(z)); raw conditioning is the response text's embedding. Spline
+methods work on the 4 x P controls (normalized to [-1, 1]) and reconstruct u = R(c); dense methods
+predict the 150 x 4 trajectory directly. Every output passes through ``safety.make_safe``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import nnx
+
+from jgrounding import flows, safety, splines, training
+from jgrounding.models import CNNRegressor, VelocityMLP
+
+METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm", "tuple_spline_rf")
+DISPLAY = {
+    "raw_dense_cnn": "Raw + Dense + CNN",
+    "tuple_dense_cnn": "Tuple + Dense + CNN",
+    "tuple_spline_cnn": "Tuple + Spline + CNN",
+    "tuple_spline_ddpm": "Tuple + Spline + DDPM",
+    "tuple_spline_rf": "Tuple + Spline + RF",
+}
+T = splines.NUM_STEPS
+
+
+@dataclasses.dataclass(frozen=True)
+class MethodSpec:
+    condition: str  # "tuple" | "raw"
+    representation: str  # "spline" | "dense"
+    generator: str  # "cnn" | "ddpm" | "rf"
+
+
+def spec(method: str) -> MethodSpec:
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+    c, r, g = method.split("_")
+    return MethodSpec(c, r, g)
+
+
+def build_model(method: str, num_controls: int, key) -> nnx.Module:
+    s = spec(method)
+    rngs = nnx.Rngs(key)
+    tuple_cond = s.condition == "tuple"
+    if s.generator == "cnn":
+        if s.representation == "dense":  # 32 channels over 150 steps: same budget order as the MLPs
+            return CNNRegressor(T, tuple_cond, channels=32, rngs=rngs)
+        return CNNRegressor(num_controls, tuple_cond, rngs=rngs)
+    dim = 4 * (num_controls if s.representation == "spline" else T)
+    return VelocityMLP(dim, tuple_cond, rngs=rngs)
+
+
+@dataclasses.dataclass(frozen=True)
+class Trained:
+    """Parameters of ``len(seeds)`` runs of one method (leading axis = seed)."""
+
+    method: str
+    graphdef: Any
+    params: Any
+    seeds: tuple[int, ...]
+    num_controls: int
+    losses: Any = None
+
+
+def _encode(y):  # controls / actuation in ~[0, 1] -> [-1, 1]
+    return 2.0 * y - 1.0
+
+
+def _decode(x):
+    return 0.5 * (x + 1.0)
+
+
+def training_data(method: str, split, intent_emb: np.ndarray, text_emb: np.ndarray | None, num_controls: int):
+    """Arrays the loss reads: condition embedding, intensity, flat normalized target."""
+    s = spec(method)
+    if s.representation == "spline":
+        target = np.asarray(splines.fit(split.u, num_controls=num_controls)) if num_controls != split.controls.shape[-1] \
+            else split.controls
+        target = target.reshape(len(split), -1) if s.generator != "cnn" else np.swapaxes(target, -1, -2)
+    else:
+        target = split.u.reshape(len(split), -1) if s.generator != "cnn" else split.u
+    if s.condition == "raw":
+        if text_emb is None:
+            raise ValueError("raw conditioning needs text embeddings of the records' response texts")
+        n_text = text_emb.shape[1]
+        cond = text_emb.reshape(-1, text_emb.shape[-1])  # one example per (record, text)
+        target = np.repeat(target, n_text, axis=0)
+        intensity = np.repeat(split.intensity, n_text)
+    else:
+        cond = intent_emb[split.intent]
+        intensity = split.intensity
+    return {"cond": jnp.asarray(cond, jnp.float32), "intensity": jnp.asarray(intensity, jnp.int32),
+            "target": _encode(jnp.asarray(target, jnp.float32))}
+
+
+def _loss_fn(method: str, graphdef, data):
+    s = spec(method)
+
+    def loss(params, idx, key):
+        model = nnx.merge(graphdef, params)
+        cond, inten, y = data["cond"][idx], data["intensity"][idx], data["target"][idx]
+        if s.generator == "cnn":
+            return jnp.mean((model(cond, inten) - y) ** 2)
+        net = lambda x, t: model(x, t, cond, inten)  # noqa: E731
+        return flows.rf_loss(net, y, key) if s.generator == "rf" else flows.ddpm_loss(net, y, key)
+
+    return loss
+
+
+def init(method: str, seeds, num_controls: int = 4):
+    """(graphdef, params stacked over seeds)."""
+    keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
+    graphdef, _ = nnx.split(build_model(method, num_controls, keys[0]))
+    params = jax.vmap(lambda k: nnx.split(build_model(method, num_controls, k))[1])(keys)
+    return graphdef, params
+
+
+def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainConfig = training.TrainConfig(),
+          *, intent_emb=None, text_emb=None, num_controls: int = 4, progress: bool = True,
+          initial_states=None, on_chunk=None) -> Trained:
+    """Train ``method`` on ``library.train`` for every seed at once (vmap); returns :class:`Trained`."""
+    from jgrounding import semantics
+
+    intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb
+    data = training_data(method, library.train, intent_emb, text_emb, num_controls)
+    graphdef, params = init(method, seeds, num_controls)
+    step = training.make_step(_loss_fn(method, graphdef, data), int(data["target"].shape[0]), config)
+    if initial_states is None:
+        keys = jnp.stack([jax.random.fold_in(jax.random.key(int(s)), 1) for s in seeds])
+        initial_states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
+    states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
+                                    on_chunk=on_chunk)
+    return Trained(method, graphdef, states.params, tuple(int(s) for s in seeds), num_controls, losses)
+
+
+def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
+               steps: int = 50, num_controls: int = 4):
+    """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, 4)``."""
+    s = spec(method)
+    model = nnx.merge(graphdef, params)
+    b = cond.shape[0]
+    if s.generator == "cnn":
+        y = _decode(model(cond, intensity))  # (B, L, 4)
+        u = splines.reconstruct(jnp.swapaxes(y, -1, -2)) if s.representation == "spline" else y
+        return safety.make_safe(u)
+    dim = 4 * (num_controls if s.representation == "spline" else T)
+    eps = jax.random.normal(key, (b, dim))
+    net = lambda x, t: model(x, t, cond, intensity)  # noqa: E731
+    if s.generator == "rf":
+        x = flows.rf_sample(net, eps, steps=steps, sampler=sampler)
+    else:
+        k2 = jax.random.fold_in(key, 1)
+        x = flows.ddpm_sample(net, eps, k2, sampler="ancestral" if sampler == "euler" else sampler,
+                              sample_steps=steps)
+    y = _decode(x)
+    u = splines.reconstruct(y.reshape(b, 4, num_controls)) if s.representation == "spline" else y.reshape(b, T, 4)
+    return safety.make_safe(u)
+
+
+def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num_samples: int = 30, *,
+             sampler: str = "euler", steps: int = 50, batch: int = 640) -> np.ndarray:
+    """u ``(num_seeds, N, K, 150, 4)`` for conditions ``cond (N, 384)``, ``intensity (N,)``."""
+    n = cond.shape[0]
+    cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), num_samples, axis=0)
+    inten_k = jnp.repeat(jnp.asarray(intensity, jnp.int32), num_samples, axis=0)
+    fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls)
+    keys = jax.random.split(key, len(trained.seeds))
+    outs = []
+    for i in range(0, n * num_samples, batch):
+        sub = jax.vmap(lambda k: jax.random.fold_in(k, i))(keys)
+        c, z = cond_k[i:i + batch], inten_k[i:i + batch]
+        pad = batch - c.shape[0]
+        c, z = jnp.pad(c, ((0, pad), (0, 0))), jnp.pad(z, (0, pad))
+        outs.append(np.asarray(fn(trained.params, c, z, sub))[:, : batch - pad])
+    u = np.concatenate(outs, axis=1)
+    return u.reshape(len(trained.seeds), n, num_samples, T, 4)
+
+
+_GEN_CACHE: dict = {}
+
+
+def _generate_fn(method, graphdef, sampler, steps, num_controls):
+    key = (method, id(graphdef), sampler, steps, num_controls)
+    if key not in _GEN_CACHE:
+        def one(params, cond, inten, k):
+            return sample_one(method, graphdef, params, cond, inten, k, sampler=sampler, steps=steps,
+                              num_controls=num_controls)
+
+        _GEN_CACHE[key] = jax.jit(jax.vmap(one, in_axes=(0, None, None, 0)))
+    return _GEN_CACHE[key]
+
+
+def latency_fn(trained: Trained, seed_index: int = 0, *, sampler: str = "euler", steps: int = 50):
+    """Compiled single-trajectory grounding ``(cond (384,), intensity, key) -> u (150, 4)`` for timing."""
+    params = jax.tree.map(lambda x: x[seed_index], trained.params)
+
+    @jax.jit
+    def fn(cond, intensity, key):
+        return sample_one(trained.method, trained.graphdef, params, cond[None], intensity[None], key,
+                          sampler=sampler, steps=steps, num_controls=trained.num_controls)[0]
+
+    return fn

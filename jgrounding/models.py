@@ -1,0 +1,108 @@
+"""Networks of Table I (Flax NNX): the velocity / noise MLP and the deterministic 1-D CNN regressors.
+
+Each model takes a flat target ``x`` (controls 4 x P or dense 150 x 4, flattened), a flow/diffusion
+time ``t`` and a condition: the frozen text embedding (E_m(m) of the intent, or of the raw response)
+plus, for tuple conditioning, a learnable intensity embedding E_z(z).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import nnx
+
+TIME_DIM = 128
+TEXT_DIM = 384
+INTENSITY_DIM = 64
+
+
+def sinusoidal(t: jax.Array, dim: int = TIME_DIM) -> jax.Array:
+    """128-d sinusoidal embedding of times ``(...,)`` in [0, 1] -> ``(..., dim)``."""
+    half = dim // 2
+    freqs = jnp.exp(-jnp.log(10_000.0) * jnp.arange(half) / half)
+    ang = 1000.0 * t[..., None] * freqs
+    return jnp.concatenate([jnp.sin(ang), jnp.cos(ang)], axis=-1)
+
+
+class Condition(nnx.Module):
+    """E_m(m) (frozen, given) concatenated with a learnable E_z(z); raw conditioning uses only the text."""
+
+    def __init__(self, use_intensity: bool, *, rngs: nnx.Rngs):
+        self.use_intensity = use_intensity
+        self.intensity = nnx.Embed(4, INTENSITY_DIM, rngs=rngs) if use_intensity else None
+
+    @property
+    def dim(self) -> int:
+        return TEXT_DIM + (INTENSITY_DIM if self.use_intensity else 0)
+
+    def __call__(self, text_emb, intensity):
+        if not self.use_intensity:
+            return text_emb
+        return jnp.concatenate([text_emb, self.intensity(intensity)], axis=-1)
+
+
+class VelocityMLP(nnx.Module):
+    """v_theta(c_lambda, lambda | E_m, E_z): 4-layer MLP, width 256, SiLU, 128-d time embedding."""
+
+    def __init__(self, dim: int, use_intensity: bool = True, width: int = 256, *, rngs: nnx.Rngs):
+        self.cond = Condition(use_intensity, rngs=rngs)
+        self.l1 = nnx.Linear(dim + TIME_DIM + self.cond.dim, width, rngs=rngs)
+        self.l2 = nnx.Linear(width, width, rngs=rngs)
+        self.l3 = nnx.Linear(width, width, rngs=rngs)
+        self.l4 = nnx.Linear(width, dim, rngs=rngs)
+
+    def __call__(self, x, t, text_emb, intensity):
+        h = jnp.concatenate([x, sinusoidal(t), self.cond(text_emb, intensity)], axis=-1)
+        h = nnx.silu(self.l1(h))
+        h = nnx.silu(self.l2(h))
+        h = nnx.silu(self.l3(h))
+        return self.l4(h)
+
+
+class Conv1D(nnx.Module):
+    """'Same'-padded 1-D convolution as one matmul over stacked shifted windows.
+
+    Written out (rather than ``nnx.Conv``) because under ``vmap`` over seeds XLA turns a batched conv
+    into a grouped convolution, which is ~10x slower on CPU than this einsum.
+    """
+
+    def __init__(self, cin: int, cout: int, kernel: int, *, rngs: nnx.Rngs):
+        self.kernel = kernel
+        scale = 1.0 / jnp.sqrt(cin * kernel)
+        self.w = nnx.Param(jax.random.uniform(rngs.params(), (kernel, cin, cout), minval=-scale, maxval=scale))
+        self.b = nnx.Param(jnp.zeros((cout,)))
+
+    def __call__(self, x):  # (..., L, C)
+        half = self.kernel // 2
+        pad = [(0, 0)] * (x.ndim - 2) + [(half, self.kernel - 1 - half), (0, 0)]
+        xp = jnp.pad(x, pad)
+        length = x.shape[-2]
+        windows = jnp.stack([xp[..., i:i + length, :] for i in range(self.kernel)], axis=-2)  # (..., L, k, C)
+        return jnp.einsum("...lkc,kco->...lo", windows, self.w.value) + self.b.value
+
+
+class CNNRegressor(nnx.Module):
+    """Deterministic 1-D CNN: condition -> (length, 4) trajectory (dense, T=150) or controls (P)."""
+
+    def __init__(self, length: int, use_intensity: bool = True, channels: int = 64, *, rngs: nnx.Rngs):
+        self.length = length
+        self.base = max(length // 4, 1) if length > 16 else length
+        self.cond = Condition(use_intensity, rngs=rngs)
+        self.inp = nnx.Linear(self.cond.dim, self.base * channels, rngs=rngs)
+        self.c1 = Conv1D(channels, channels, 5, rngs=rngs)
+        self.c2 = Conv1D(channels, channels, 5, rngs=rngs)
+        self.c3 = Conv1D(channels, channels, 5, rngs=rngs)
+        self.out = Conv1D(channels, 4, 3, rngs=rngs)
+        self.channels = channels
+
+    def __call__(self, text_emb, intensity):
+        h = nnx.silu(self.inp(self.cond(text_emb, intensity)))
+        h = h.reshape(h.shape[:-1] + (self.base, self.channels))
+        h = nnx.silu(self.c1(h))
+        if self.base != self.length:  # upsample to the dense horizon
+            # nearest-neighbour upsampling (a gather): cheap forward and backward on CPU
+            src = jnp.minimum((jnp.arange(self.length) * self.base) // self.length, self.base - 1)
+            h = h[..., src, :]
+        h = nnx.silu(self.c2(h))
+        h = nnx.silu(self.c3(h))
+        return self.out(h)  # (..., length, 4)
