@@ -5,7 +5,6 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
-export MUJOCO_GL ?= egl
 
 .PHONY: install test test-fast ablation sweep bench library clean
 

@@ -10,6 +10,12 @@ Heavy parts (text encoder, generators, physics) are imported on first use, so
 from __future__ import annotations
 
 import importlib
+import os
+
+# MuJoCo picks its OpenGL backend when it is imported. With no display, software OSMesa is the one
+# that renders on a CPU-only machine (EGL needs a GPU driver); a user's own MUJOCO_GL wins.
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "osmesa"
 
 from jgrounding import safety, splines
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe, intensity_index, intent_index

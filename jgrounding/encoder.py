@@ -18,7 +18,8 @@ NUM_LAYERS = 6
 NUM_HEADS = 12
 HIDDEN = 384
 MAX_TOKENS = 256
-BUCKETS = (16, 32, 64, 128, 256)
+# Padded sequence lengths: each is one compiled shape; finer steps where responses usually fall.
+BUCKETS = (16, 24, 32, 48, 64, 96, 128, 192, 256)
 LN_EPS = 1e-12
 
 
@@ -32,33 +33,39 @@ def model_dir():
 
 @functools.lru_cache(maxsize=1)
 def load_params() -> dict:
-    """The encoder's weights as a pytree of float32 jax arrays (Linear weights transposed to (in, out))."""
+    """The encoder's weights as a pytree of float32 jax arrays.
+
+    Linear weights are transposed to ``(in, out)``; the six transformer layers are stacked on a leading
+    axis so the compiled encoder runs them with one ``lax.scan`` (one traced layer, short compiles).
+    """
     from safetensors.numpy import load_file
 
     w = load_file(str(model_dir() / "model.safetensors"))
 
     def dense(prefix):
-        return {"w": jnp.asarray(w[prefix + ".weight"].T), "b": jnp.asarray(w[prefix + ".bias"])}
+        return {"w": w[prefix + ".weight"].T, "b": w[prefix + ".bias"]}
 
     def norm(prefix):
-        return {"g": jnp.asarray(w[prefix + ".weight"]), "b": jnp.asarray(w[prefix + ".bias"])}
+        return {"g": w[prefix + ".weight"], "b": w[prefix + ".bias"]}
 
-    layers = []
-    for i in range(NUM_LAYERS):
+    def layer(i):
         p = f"encoder.layer.{i}."
-        layers.append({
+        return {
             "q": dense(p + "attention.self.query"), "k": dense(p + "attention.self.key"),
             "v": dense(p + "attention.self.value"), "o": dense(p + "attention.output.dense"),
             "ln1": norm(p + "attention.output.LayerNorm"), "ff1": dense(p + "intermediate.dense"),
             "ff2": dense(p + "output.dense"), "ln2": norm(p + "output.LayerNorm"),
-        })
-    return {
-        "word": jnp.asarray(w["embeddings.word_embeddings.weight"]),
-        "pos": jnp.asarray(w["embeddings.position_embeddings.weight"]),
-        "type": jnp.asarray(w["embeddings.token_type_embeddings.weight"]),
+        }
+
+    layers = jax.tree.map(lambda *xs: np.stack(xs), *[layer(i) for i in range(NUM_LAYERS)])
+    params = {
+        "word": w["embeddings.word_embeddings.weight"],
+        "pos": w["embeddings.position_embeddings.weight"],
+        "type": w["embeddings.token_type_embeddings.weight"],
         "ln": norm("embeddings.LayerNorm"),
         "layers": layers,
     }
+    return jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), params)
 
 
 @functools.lru_cache(maxsize=1)
@@ -102,43 +109,67 @@ def encode_ids(params, ids, mask):
     x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
     x = _layer_norm(x, params["ln"])
     mask_bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
-    for p in params["layers"]:
-        x = _block(x, mask_bias, p)
+    x, _ = jax.lax.scan(lambda h, p: (_block(h, mask_bias, p), None), x, params["layers"])
     m = mask[..., None].astype(jnp.float32)
     pooled = (x * m).sum(1) / jnp.maximum(m.sum(1), 1e-9)
     return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)
 
 
-def tokenize(texts) -> tuple[np.ndarray, np.ndarray]:
-    """Texts -> (ids, mask) padded to the smallest bucket that fits the longest text."""
-    enc = tokenizer().encode_batch(list(texts))
-    longest = max(len(e.ids) for e in enc)
-    length = next(b for b in BUCKETS if b >= longest)
-    ids = np.zeros((len(enc), length), np.int32)
-    mask = np.zeros((len(enc), length), np.int32)
+def _pad_rows(enc, length: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    ids = np.zeros((rows, length), np.int32)
+    mask = np.zeros((rows, length), np.int32)
     for i, e in enumerate(enc):
         ids[i, : len(e.ids)] = e.ids
         mask[i, : len(e.ids)] = 1
+    mask[len(enc):, 0] = 1  # padding rows attend to one token, so their softmax has no 0/0
     return ids, mask
 
 
+def bucket_length(num_tokens: int) -> int:
+    """The padded length for a text of ``num_tokens`` tokens: the smallest bucket that holds it."""
+    return next(b for b in BUCKETS if b >= num_tokens)
+
+
+def tokenize(texts) -> tuple[np.ndarray, np.ndarray]:
+    """Texts -> (ids, mask) ``(N, L)`` int32, padded to the smallest bucket L that fits the longest text."""
+    enc = tokenizer().encode_batch(list(texts))
+    return _pad_rows(enc, bucket_length(max(len(e.ids) for e in enc)), len(enc))
+
+
 def embed(texts, batch_size: int = 64) -> np.ndarray:
-    """Sentence embeddings ``(N, 384)`` float32 of a sequence of strings (batched, bucketed)."""
+    """Sentence embeddings ``(N, 384)`` float32 of a sequence of strings (batched, bucketed).
+
+    Texts are sorted by token count before batching, so each batch is padded only to the bucket of its
+    own longest text; batches are padded to 1, 8 or ``batch_size`` rows. Together the buckets bound the
+    number of compiled shapes, so nothing is traced again once they are warm. Longer texts are
+    truncated at ``MAX_TOKENS`` (as sentence-transformers does for this model).
+    """
+    if isinstance(texts, str):
+        raise TypeError("embed takes a sequence of strings; wrap a single text in a list")
     texts = list(texts)
+    bad = [type(t).__name__ for t in texts if not isinstance(t, str)]
+    if bad:
+        raise TypeError(f"embed takes strings only, got {bad[0]}")
     if not texts:
         return np.zeros((0, HIDDEN), np.float32)
     params = load_params()
-    out = []
-    for i in range(0, len(texts), batch_size):
-        chunk = texts[i:i + batch_size]
-        ids, mask = tokenize(chunk)
-        pad = batch_size if len(texts) > batch_size else _bucket_batch(len(chunk))
-        ids = np.pad(ids, ((0, pad - len(chunk)), (0, 0)))
-        mask = np.pad(mask, ((0, pad - len(chunk)), (0, 0)))
-        mask[len(chunk):, 0] = 1  # padding rows attend to one token: no NaN
-        out.append(np.asarray(encode_ids(params, ids, mask))[: len(chunk)])
-    return np.concatenate(out).astype(np.float32)
+    enc = tokenizer().encode_batch(texts)
+    order = np.argsort([len(e.ids) for e in enc], kind="stable")
+    out = np.zeros((len(texts), HIDDEN), np.float32)
+    for start in range(0, len(texts), batch_size):
+        idx = order[start:start + batch_size]
+        chunk = [enc[i] for i in idx]
+        rows = next(b for b in (1, 8, batch_size) if b >= len(chunk))
+        ids, mask = _pad_rows(chunk, bucket_length(max(len(e.ids) for e in chunk)), rows)
+        out[idx] = np.asarray(encode_ids(params, ids, mask))[: len(chunk)]
+    return out
 
 
-def _bucket_batch(n: int) -> int:
-    return next(b for b in (1, 8, 64) if b >= n) if n <= 64 else n
+def warmup(max_tokens: int = 64, rows: tuple[int, ...] = (1,)) -> None:
+    """Compile the encoder for every bucket up to ``max_tokens`` and the given batch rows (e.g. a server)."""
+    params = load_params()
+    for length in BUCKETS:
+        if length > max(max_tokens, BUCKETS[0]):
+            break
+        for r in rows:
+            encode_ids(params, np.zeros((r, length), np.int32), np.ones((r, length), np.int32)).block_until_ready()

@@ -99,10 +99,10 @@ class CNNRegressor(nnx.Module):
         h = nnx.silu(self.inp(self.cond(text_emb, intensity)))
         h = h.reshape(h.shape[:-1] + (self.base, self.channels))
         h = nnx.silu(self.c1(h))
-        if self.base != self.length:  # upsample to the dense horizon
+        h = nnx.silu(self.c2(h))
+        h = nnx.silu(self.c3(h))
+        if self.base != self.length:  # upsample to the dense horizon; the output layer works per step
             # nearest-neighbour upsampling (a gather): cheap forward and backward on CPU
             src = jnp.minimum((jnp.arange(self.length) * self.base) // self.length, self.base - 1)
             h = h[..., src, :]
-        h = nnx.silu(self.c2(h))
-        h = nnx.silu(self.c3(h))
         return self.out(h)  # (..., length, 4)

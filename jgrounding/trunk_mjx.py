@@ -57,9 +57,23 @@ def _compiled(contact: bool):
     return jax.jit(jax.vmap(one))
 
 
-def rollout_mjx(u: np.ndarray, contact: bool = True) -> trunk.Rollout:
-    """``(B, T, 4)`` validated commands -> :class:`trunk.Rollout` via MJX (float32)."""
+def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> trunk.Rollout:
+    """``(B, T, 4)`` validated commands -> :class:`trunk.Rollout` via MJX (float32).
+
+    With ``chunk``, the batch runs as padded chunks of that size, so one compiled program serves every
+    batch size (compilation, not execution, dominates on CPU).
+    """
     fn = _compiled(contact)
-    points, tendon, touch = jax.device_get(fn(jnp.asarray(u, jnp.float32)))
+    u = jnp.asarray(u, jnp.float32)
+    if chunk is None or u.shape[0] == chunk:
+        outs = [jax.device_get(fn(u))]
+    else:
+        outs = []
+        for i in range(0, u.shape[0], chunk):
+            part = u[i:i + chunk]
+            pad = chunk - part.shape[0]
+            res = jax.device_get(fn(jnp.pad(part, ((0, pad), (0, 0), (0, 0)))))
+            outs.append(tuple(x[: chunk - pad] for x in res))
+    points, tendon, touch = (np.concatenate(x) for x in zip(*outs))
     return trunk._finish(np.asarray(points, np.float64), np.asarray(tendon, np.float64),
                          np.asarray(touch, np.float64))

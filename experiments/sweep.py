@@ -1,0 +1,141 @@
+"""Sweeps beyond Table II: ``python -m experiments.sweep {tau_rms,steps,controls} [options]``.
+
+- ``tau_rms``: success per method for tau in {0.25, ..., 0.45} from results/ablation_rms.npz (run
+  ``make ablation`` first) and whether the method ordering at 0.35 holds at every tau; plot.
+- ``steps``: RF (Euler) and DDPM (DDIM with S steps; ancestral at the trained 50) for S = 1, 2, 4, 8, 16, 50:
+  success, diversity and single-trajectory time; reuses the ablation's checkpoints in runs/ablation.
+- ``controls``: Tuple + Spline + RF trained with P = 3..8 spline controls (fewer seeds): success, diversity.
+Each writes results/sweep_<name>.{md,json} and a PNG.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from jgrounding import checkpoints, load_library, methods, metrics, semantics, splines
+from jgrounding.export import write_atomic
+from jgrounding.plotting import plt, save
+from jgrounding.training import TrainConfig
+
+SWEEPS = ("tau_rms", "steps", "controls")
+RESULTS = Path("results")
+
+
+def load_trained(method: str, runs: Path = Path("runs/ablation")) -> methods.Trained:
+    path = runs / method
+    meta = checkpoints.read_meta(path)
+    graphdef, params = methods.init(method, tuple(meta["seeds"]), meta.get("num_controls", 4))
+    params, meta = checkpoints.restore(path, params, expect={"method": method})
+    return methods.Trained(method, graphdef, params, tuple(meta["seeds"]), meta.get("num_controls", 4))
+
+
+def sweep_tau(args) -> dict:
+    path = RESULTS / "ablation_rms.npz"
+    if not path.exists():
+        sys.exit(f"{path} not found: run `make ablation` (python -m experiments.ablation) first")
+    rms = dict(np.load(path))
+    table = {m: {t: mean_std((r[:, :, 0] <= t).mean(1)) for t in metrics.TAUS} for m, r in rms.items()}
+    order = sorted(table, key=lambda m: table[m][0.35][0])
+    holds = {t: sorted(table, key=lambda m: table[m][t][0]) == order
+             or all(table[a][t][0] <= table[b][t][0] + 1e-9 for a, b in zip(order, order[1:])) for t in metrics.TAUS}
+    lines = ["| Method | " + " | ".join(f"τ={t:.2f}" for t in metrics.TAUS) + " |", "|---" * (len(metrics.TAUS) + 1) + "|"]
+    for m in rms:
+        lines.append(f"| {methods.DISPLAY[m]} | " + " | ".join(f"{table[m][t][0]:.3f} ± {table[m][t][1]:.3f}"
+                                                             for t in metrics.TAUS) + " |")
+    lines.append("")
+    lines.append("Ordering of methods at τ = 0.35 (low to high): " + " < ".join(methods.DISPLAY[m] for m in order) + ".")
+    lines += [f"- τ = {t:.2f}: ordering {'holds' if holds[t] else 'does NOT hold'}" for t in metrics.TAUS]
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for m in rms:
+        ax.errorbar(metrics.TAUS, [table[m][t][0] for t in metrics.TAUS], [table[m][t][1] for t in metrics.TAUS],
+                    label=methods.DISPLAY[m], marker="o", capsize=3)
+    ax.axvline(0.35, color="k", ls=":", lw=1)
+    ax.set_xlabel("τ_rms")
+    ax.set_ylabel("held-out success")
+    ax.legend(fontsize=7)
+    save(fig, RESULTS / "sweep_tau_rms.png")
+    return {"table": {m: {str(t): v for t, v in d.items()} for m, d in table.items()},
+            "ordering_holds": {str(t): v for t, v in holds.items()}, "markdown": "\n".join(lines)}
+
+
+def mean_std(x):
+    x = np.asarray(x, float)
+    return float(x.mean()), float(x.std())
+
+
+def _eval(trained, lib, cond, key, k_div, steps, sampler="euler"):
+    u = methods.generate(trained, cond, lib.heldout.intensity, key, num_samples=k_div, steps=steps, sampler=sampler)
+    r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))
+    div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
+    lat = methods.latency_fn(trained, 0, steps=steps, sampler=sampler)
+    jax.block_until_ready(lat(cond[0], lib.heldout.intensity[0], key))
+    t0 = time.perf_counter()
+    for j in range(len(lib.heldout)):
+        jax.block_until_ready(lat(cond[j], lib.heldout.intensity[j], jax.random.fold_in(key, j)))
+    ms = 1e3 * (time.perf_counter() - t0) / len(lib.heldout)
+    return mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), mean_std(div), ms
+
+
+def sweep_steps(args) -> dict:
+    lib = load_library()
+    cond = semantics.intent_embeddings()[lib.heldout.intent]
+    rows = {}
+    for method, sampler_of in (("tuple_spline_rf", lambda s: "euler"),
+                               ("tuple_spline_ddpm", lambda s: "ancestral" if s == 50 else "ddim")):
+        trained = load_trained(method)
+        for s in (1, 2, 4, 8, 16, 50):
+            succ, div, ms = _eval(trained, lib, cond, jax.random.key(s), args.k_div, s, sampler_of(s))
+            rows[f"{method}/S={s}"] = {"success": succ, "diversity": div, "time_ms": ms, "sampler": sampler_of(s)}
+            print(f"{methods.DISPLAY[method]:24s} S={s:2d} ({sampler_of(s)}) success {succ[0]:.3f} ± {succ[1]:.3f}  "
+                  f"div {div[0]:.3f}  time {ms:.3f} ms", flush=True)
+    lines = ["| Method | S | sampler | Succ. | Div. | Time (ms) |", "|---|---|---|---|---|---|"]
+    for k, r in rows.items():
+        m, s = k.split("/S=")
+        lines.append(f"| {methods.DISPLAY[m]} | {s} | {r['sampler']} | {r['success'][0]:.3f} ± {r['success'][1]:.3f} | "
+                     f"{r['diversity'][0]:.3f} | {r['time_ms']:.3f} |")
+    return {"rows": rows, "markdown": "\n".join(lines)}
+
+
+def sweep_controls(args) -> dict:
+    lib = load_library()
+    cond = semantics.intent_embeddings()[lib.heldout.intent]
+    seeds = tuple(range(args.seeds))
+    rows = {}
+    for p in range(3, 9):
+        trained = methods.train("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), num_controls=p)
+        succ, div, ms = _eval(trained, lib, cond, jax.random.key(p), args.k_div, 50)
+        fit_err = float(np.sqrt(((np.asarray(splines.reconstruct(splines.fit(lib.heldout.u, p))) - lib.heldout.u) ** 2).mean()))
+        rows[p] = {"success": succ, "diversity": div, "time_ms": ms, "library_fit_rms": fit_err}
+        print(f"P={p}: success {succ[0]:.3f} ± {succ[1]:.3f}  div {div[0]:.3f}  time {ms:.3f} ms  "
+              f"fit RMS of the library {fit_err:.4f}", flush=True)
+    lines = ["| P | Succ. | Div. | Time (ms) | library fit RMS |", "|---|---|---|---|---|"]
+    for p, r in rows.items():
+        lines.append(f"| {p} | {r['success'][0]:.3f} ± {r['success'][1]:.3f} | {r['diversity'][0]:.3f} | "
+                     f"{r['time_ms']:.3f} | {r['library_fit_rms']:.4f} |")
+    return {"rows": {str(k): v for k, v in rows.items()}, "markdown": "\n".join(lines), "seeds": list(seeds)}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("name", choices=SWEEPS)
+    p.add_argument("--k-div", type=int, default=30)
+    p.add_argument("--seeds", type=int, default=3, help="seeds for `controls` (trains 6 models per seed)")
+    p.add_argument("--steps", type=int, default=10_000, help="training steps for `controls`")
+    args = p.parse_args(argv)
+    res = {"tau_rms": sweep_tau, "steps": sweep_steps, "controls": sweep_controls}[args.name](args)
+    write_atomic(RESULTS / f"sweep_{args.name}.md", res["markdown"] + "\n")
+    write_atomic(RESULTS / f"sweep_{args.name}.json", json.dumps({k: v for k, v in res.items() if k != "markdown"},
+                                                                  indent=1, default=float))
+    print(res["markdown"])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

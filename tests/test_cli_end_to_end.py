@@ -1,0 +1,74 @@
+"""End to end: the command line (subprocess) and the quick ablation."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jgrounding import export, safety
+
+ROOT = Path(__file__).resolve().parent.parent
+ENV = {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(ROOT)}
+
+
+def run(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, env=ENV, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.mark.slow
+def test_cli_grounds_samples_and_writes_files(tmp_path):
+    out = tmp_path / "out"
+    p = run("jgrounding", "User seems sad; respond calmly with a gentle touch", "--samples", "4",
+            "--out", str(out), "--seed", "1")
+    assert p.returncode == 0, p.stderr
+    assert "comforting" in p.stdout
+    for name in ("tendons.png", "posture.png", "motion.gif", "commands.csv", "commands.json", "samples.npy"):
+        assert (out / name).stat().st_size > 1000 or name.endswith((".csv", ".json")), name
+    header, u = export.read_command_stream_csv(out / "commands.csv")
+    assert u.shape == (150, 4) and safety.is_safe(u)
+    assert header["bounds"] == [0.0, 1.0] and header["intent"] == "comforting"
+    doc = json.loads((out / "commands.json").read_text())
+    np.testing.assert_allclose(np.array(doc["commands"]), u, atol=1e-5)
+    assert np.load(out / "samples.npy").shape == (4, 150, 4)
+
+
+def test_cli_jsonl_mode_and_direct_tuple(tmp_path):
+    p = run("jgrounding", "--intent", "nodding", "--intensity", "subtle", "--samples", "2", "--no-render",
+            "--jsonl", "--out", str(tmp_path))
+    assert p.returncode == 0, p.stderr
+    events = [json.loads(line) for line in p.stdout.splitlines()]
+    assert events[0] == {"event": "tuple", "intent": "nodding", "intensity": "subtle"}
+    assert any(e["event"] == "file" and e["kind"] == "csv" for e in events)
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--intent", "dancing"], "invalid choice"),
+    (["hello", "--samples", "0"], "--samples"),
+    (["hello", "--backend", "gpt4"], "invalid choice"),
+    ([], "give a response text"),
+    (["--intensity", "subtle"], "--intensity needs --intent"),
+    (["hi", "--seed", "-3"], "--seed"),
+])
+def test_cli_usage_errors_exit_2_and_name_choices(args, match):
+    p = run("jgrounding", *args, timeout=60)
+    assert p.returncode == 2 and match in p.stderr, p.stderr
+
+
+@pytest.mark.slow
+def test_quick_ablation_end_to_end(tmp_path):
+    p = run("experiments.ablation", "--quick", "--out", str(tmp_path), timeout=900)
+    assert p.returncode == 0, p.stderr[-2000:]
+    res = json.loads((tmp_path / "ablation.json").read_text())
+    rows = res["rows"]
+    assert set(rows) == {"raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm",
+                         "tuple_spline_rf"}
+    for r in rows.values():
+        assert 0.0 <= r["success"][0] <= 1.0 and 0.0 <= r["feasible"] <= 1.0 and r["time_ms"] > 0
+    cnn_div = max(rows[m]["diversity"][0] for m in rows if m.endswith("cnn"))
+    assert cnn_div < 1e-6 < rows["tuple_spline_rf"]["diversity"][0]  # RF beats the CNNs on diversity
+    assert (tmp_path / "ablation.md").read_text().count("|") > 50
+    assert (tmp_path / "ablation.csv").read_text().count("\n") == 6

@@ -1,0 +1,77 @@
+"""The tendon-driven trunk: conventions, rollouts, features, MJX/native agreement."""
+import numpy as np
+import pytest
+
+from jgrounding import trunk
+
+
+def hold(pulls, steps=150):
+    return np.tile(np.asarray(pulls, float), (steps, 1))
+
+
+def test_model_structure():
+    m = trunk.load_model()
+    assert m.nu == 4 and m.ntendon == 4 and m.njnt == 3 * trunk.NUM_SEGMENTS
+    assert trunk.CONTROL_DT == pytest.approx(1 / 30)
+
+
+def test_rollout_shapes_and_rest_posture():
+    r = trunk.rollout(np.zeros((2, 150, 4)))
+    assert r.backbone.shape == (2, 150, trunk.NUM_SEGMENTS + 1, 3)
+    assert r.tip.shape == (2, 150, 3) and r.tendon_length.shape == (2, 150, 4)
+    assert r.stable.all() and np.abs(r.tip[:, -1, :2]).max() < 1e-3  # hangs straight down
+    assert (r.contact_force == 0).all()
+
+
+def test_each_tendon_bends_toward_its_side_and_cocontraction_retracts():
+    u = np.stack([hold([0.6, 0, 0, 0]), hold([0, 0.6, 0, 0]), hold([0, 0, 0.6, 0]), hold([0, 0, 0, 0.6]),
+                  hold([0.6, 0.6, 0.6, 0.6]), hold([0, 0, 0, 0])])
+    tip = trunk.rollout(u, contact=False).tip[:, -1]
+    assert tip[0, 0] > 0.15 and tip[2, 0] < -0.15  # toward / away from the user (x)
+    assert tip[1, 1] > 0.15 and tip[3, 1] < -0.15  # left / right (y)
+    assert tip[4, 2] > tip[5, 2] + 0.1 and np.abs(tip[4, :2]).max() < 0.01  # shorter, straight
+
+
+def test_reaching_the_user_makes_gentle_contact_and_a_jump_is_infeasible():
+    ramp = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None] * np.array([1.0, 0, 0, 0])
+    r = trunk.rollout(np.stack([ramp, hold([0.8, 0, 0, 0])]))  # slow approach vs a step command
+    assert r.contact_force[0].max() > 0 and r.user_distance[0].min() < 0.03
+    assert trunk.feasible(r).tolist() == [True, False]  # the step hits the user too fast
+
+
+def test_features_cover_the_shape_vocabulary():
+    f = trunk.features(trunk.rollout(np.stack([hold([0.5, 0, 0, 0]), hold([0, 0, 0.5, 0])])))
+    for k in ("reach_toward_user", "curvature_max", "lateral_excursion", "vertical_excursion",
+              "min_user_distance", "peak_tip_speed"):
+        assert f[k].shape == (2,)
+    assert f["reach_toward_user"][0] > 0.1 > f["reach_toward_user"][1]
+    assert f["retreat_from_user"][1] > 0.1
+
+
+@pytest.mark.parametrize("bad, match", [
+    (np.zeros((150, 3)), "shape"), (np.full((150, 4), 1.5), r"\[0, 1\]"), (np.full((150, 4), np.nan), "NaN"),
+])
+def test_bad_commands_raise(bad, match):
+    with pytest.raises(ValueError, match=match):
+        trunk.rollout(bad)
+
+
+def test_unknown_engine():
+    with pytest.raises(ValueError, match="native, mjx"):
+        trunk.rollout(np.zeros((150, 4)), engine="bullet")
+
+
+@pytest.mark.slow
+def test_mjx_agrees_with_native():
+    from jgrounding import trunk_mjx
+
+    trunk_mjx.enable_compilation_cache()
+    t = np.linspace(0, 1, 150)[:, None]
+    u = np.stack([np.hstack([0.8 * t, 0 * t, 0 * t, 0.3 * t]),  # reaches and touches the user
+                  np.hstack([0 * t, 0.5 + 0.4 * np.sin(6 * t), 0.4 * t, 0 * t])])  # swings away, no contact
+    a, b = trunk.rollout(u, engine="mjx"), trunk.rollout(u, engine="native")
+    err = np.linalg.norm(a.tip - b.tip, axis=-1)
+    assert err[:, 29].max() < 1e-3  # 1 mm after 1 s
+    assert err.max() < 5e-3  # 5 mm over the whole 5 s
+    assert a.contact_force[0].max() > 0 and b.contact_force[0].max() > 0
+    np.testing.assert_allclose(a.contact_force.max(1), b.contact_force.max(1), rtol=0.05, atol=0.05)
