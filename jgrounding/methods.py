@@ -152,7 +152,8 @@ def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: 
         return safety.make_safe(u)
     dim = 4 * (num_controls if s.representation == "spline" else T)
     eps = jax.random.normal(key, (b, dim))
-    net = lambda x, t: model(x, t, cond, intensity)  # noqa: E731
+    ctx = model.context(cond, intensity)  # precomputed once, reused by every flow step
+    net = lambda x, t: model.velocity(x, t, ctx)  # noqa: E731
     if s.generator == "rf":
         x = flows.rf_sample(net, eps, steps=steps, sampler=sampler)
     else:

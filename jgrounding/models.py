@@ -51,6 +51,21 @@ class VelocityMLP(nnx.Module):
         self.l3 = nnx.Linear(width, width, rngs=rngs)
         self.l4 = nnx.Linear(width, dim, rngs=rngs)
 
+    def context(self, text_emb, intensity):
+        """The condition's share of the first layer: constant across flow steps, so computed once."""
+        dim = self.l4.out_features
+        w = self.l1.kernel.value[dim + TIME_DIM:]
+        return self.cond(text_emb, intensity) @ w + self.l1.bias.value
+
+    def velocity(self, x, t, context):
+        """One network evaluation given a precomputed :meth:`context` (the sampler's inner loop)."""
+        dim = self.l4.out_features
+        w = self.l1.kernel.value
+        h = nnx.silu(x @ w[:dim] + sinusoidal(t) @ w[dim:dim + TIME_DIM] + context)
+        h = nnx.silu(self.l2(h))
+        h = nnx.silu(self.l3(h))
+        return self.l4(h)
+
     def __call__(self, x, t, text_emb, intensity):
         h = jnp.concatenate([x, sinusoidal(t), self.cond(text_emb, intensity)], axis=-1)
         h = nnx.silu(self.l1(h))
@@ -96,11 +111,11 @@ class CNNRegressor(nnx.Module):
         self.channels = channels
 
     def __call__(self, text_emb, intensity):
-        h = nnx.silu(self.inp(self.cond(text_emb, intensity)))
+        h = nnx.relu(self.inp(self.cond(text_emb, intensity)))
         h = h.reshape(h.shape[:-1] + (self.base, self.channels))
-        h = nnx.silu(self.c1(h))
-        h = nnx.silu(self.c2(h))
-        h = nnx.silu(self.c3(h))
+        h = nnx.relu(self.c1(h))
+        h = nnx.relu(self.c2(h))
+        h = nnx.relu(self.c3(h))
         if self.base != self.length:  # upsample to the dense horizon; the output layer works per step
             # nearest-neighbour upsampling (a gather): cheap forward and backward on CPU
             src = jnp.minimum((jnp.arange(self.length) * self.base) // self.length, self.base - 1)

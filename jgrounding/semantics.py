@@ -30,40 +30,96 @@ from jgrounding import vocabulary as voc
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 ASSET = Path(__file__).resolve().parent.parent / "assets" / "intent_embeddings.npz"
-MAX_CHARS = 4000
-CONFIDENCE_THRESHOLD = 0.35
+MAX_CHARS = 4000          # ground() reads at most this many characters
+MAX_TOKENS = 256          # the encoder truncates here (all-MiniLM-L6-v2's max_seq_length)
+CONFIDENCE_THRESHOLD = 0.35  # below it a Grounding is flagged confident=False
+MIN_SIMILARITY = 0.30     # best intent score under which nothing in spec C resembles the text
 INTENSITY_WEIGHT = 0.6
 
-# Cue phrases of the grounding specification C: how people phrase each behaviour.
+# Cue phrases of the grounding specification C: action-centred ways people phrase each behaviour.
+# Prototypes for Eq. (3) are the canonical description d_m plus these; never evaluation sentences.
 CUES = {
-    "greeting": ["say hello", "greet the user", "wave hi", "welcome them"],
-    "farewell": ["say goodbye", "wave farewell", "see you later", "bid farewell as they leave"],
-    "comforting": ["comfort the sad user", "console and soothe them gently", "pat them reassuringly", "respond calmly to sadness"],
-    "attentive_listening": ["listen carefully", "pay attention to what they say", "lean in and listen", "show I am listening"],
-    "curiosity": ["investigate the object", "explore with interest", "sniff around curiously", "check out something new"],
-    "embracing": ["give a hug", "hug the user", "wrap around them warmly", "embrace them"],
-    "withdrawal": ["back off", "give them space", "move away", "retreat from the user"],
-    "coiling": ["curl up shyly", "feel shy and self-soothe", "coil up tightly", "hide bashfully"],
-    "playful_swing": ["play around", "swing playfully", "be silly and bouncy", "dance to the music"],
-    "nodding": ["nod yes", "agree", "acknowledge with a nod", "show understanding"],
-    "refusing": ["say no", "refuse", "decline the request", "shake no"],
-    "beckoning": ["invite them to come closer", "come here", "beckon the user over", "ask them to approach"],
-    "pointing": ["point at it", "show the direction", "indicate where it is", "point the way"],
-    "celebrating": ["celebrate", "cheer for the good news", "congratulate them joyfully", "trumpet with excitement"],
-    "resting": ["relax", "rest quietly", "stay calm and idle", "take a break and droop"],
-    "offering": ["hand it over", "give them the object", "offer something", "pass it to them"],
+    "greeting": ["say hello", "greet the user", "wave hi", "welcome them", "greet the person who just arrived",
+                 "give a friendly hello wave to the newcomer"],
+    "farewell": ["say goodbye", "wave farewell", "see you later", "bid farewell as they leave",
+                 "the user is leaving, wave bye", "send them off with a goodbye"],
+    "comforting": ["comfort the sad user", "console and soothe them gently", "pat them reassuringly",
+                   "respond calmly to sadness", "the user is upset or crying, reassure them with a soft touch",
+                   "stroke their shoulder to calm them down"],
+    "attentive_listening": ["listen carefully", "pay attention to what they say", "lean in and listen",
+                            "show I am listening", "stay still and attentive while the user talks",
+                            "hear them out quietly"],
+    "curiosity": ["investigate the object", "explore with interest", "sniff around curiously",
+                  "check out something new", "examine the unfamiliar thing", "probe and inspect what is there"],
+    "embracing": ["give a hug", "hug the user", "wrap around them warmly", "embrace them",
+                  "hold them close in a cuddle", "wrap the trunk around the person"],
+    "withdrawal": ["back off", "give them space", "move away", "retreat from the user",
+                   "pull back, they are uncomfortable", "retract away from the person"],
+    "coiling": ["curl up shyly", "feel shy and self-soothe", "coil up tightly", "hide bashfully",
+                "curl into itself out of embarrassment", "tuck the trunk in, timid and nervous"],
+    "playful_swing": ["play around", "swing playfully", "be silly and bouncy", "dance to the music",
+                      "sway back and forth for fun", "swing like a pendulum to play with the kids"],
+    "nodding": ["nod yes", "agree", "acknowledge with a nod", "show understanding", "bob up and down to agree",
+                "confirm that I understood"],
+    "refusing": ["say no", "refuse", "decline the request", "shake no", "that is not allowed, disagree",
+                 "reject the offer by shaking the trunk"],
+    "beckoning": ["invite them to come closer", "come here", "beckon the user over", "ask them to approach",
+                  "call the person over to us", "gesture for them to come near"],
+    "pointing": ["point at it", "show the direction", "indicate where it is", "point the way",
+                 "show them which way to go", "direct their attention to the object over there"],
+    "celebrating": ["celebrate", "cheer for the good news", "congratulate them joyfully", "trumpet with excitement",
+                    "celebrate the victory", "party because they succeeded"],
+    "resting": ["relax", "rest quietly", "stay calm and idle", "take a break and droop", "go to sleep",
+                "nothing to do, settle down and hang loose"],
+    "offering": ["hand it over", "give them the object", "offer something", "pass it to them",
+                 "present the gift to the user", "hold out the item for them to take"],
 }
+
+# Lexical cues of C: words that name an intent's action outright. A match lowers L_sem for that intent
+# by LEXICAL_WEIGHT (once per intent), so the action verb outweighs the situation around it.
+LEXICAL = {
+    "greeting": r"hello|\bhi\b|greet\w*|welcom\w*|howdy",
+    "farewell": r"goodbye|good-bye|\bbye\b|farewell|see you|leaving|send (?:them|him|her) off|depart\w*",
+    "comforting": r"comfort\w*|console|consoling|sooth\w*|reassur\w*|\bpat\b|patting|stroke|stroking",
+    "attentive_listening": r"listen\w*|attentive\w*|hear (?:them|him|her) out|pay attention",
+    "curiosity": r"curious\w*|explor\w*|investigat\w*|sniff\w*|inspect\w*|examin\w*|\bprobe|probing",
+    "embracing": r"\bhug\w*|embrac\w*|cuddl\w*|wrap\w* around",
+    "withdrawal": r"back off|back away|pull back|retreat\w*|withdraw\w*|give (?:them|him|her) (?:some )?(?:space|room)|move away",
+    "coiling": r"\bcoil\w*|curl (?:up|in|into)|curls? (?:the tip )?in(?:ward)?\b|\bshy\w*|bashful\w*|tuck\w* in",
+    "playful_swing": r"playful\w*|\bswing\w*|\bsway\w*|bouncy|bounce|\bdanc\w*|pendulum",
+    "nodding": r"\bnod\w*|\bagree\w*|acknowledg\w*|\bbob\w*",
+    "refusing": r"\brefus\w*|declin\w*|shake no|shaking no|\breject\w*|say no\b|\bdisagree\w*",
+    "beckoning": r"beckon\w*|come (?:here|closer|over|near)|come on over|wave (?:them|him|her) over|call (?:them|him|her) over",
+    "pointing": r"\bpoint\w*|indicat\w*|direction|which way|show (?:them |him |her )?(?:where|the way)",
+    "celebrating": r"celebrat\w*|congratulat\w*|\bcheer\w*|trumpet\w*|hooray|victory|\bparty\b",
+    "resting": r"\brest\b|resting|\brelax\w*|\bdroop\w*|\bidle\b|\bnap\b|sleep\w*|settle down",
+    "offering": r"\boffer\w*|hand (?:over|them|him|her|the)|\bgive (?:them|him|her) (?:the|a|their)|present (?:the|it)|hold out|\bpass (?:the|it)",
+}
+LEXICAL_WEIGHT = 0.12
+_LEXICAL_RE = {m: re.compile(p, re.IGNORECASE) for m, p in LEXICAL.items()}
 
 # Degree cues: words that pull the intensity estimate toward a level (0 subtle .. 3 emphatic).
 DEGREE = {
-    0: ["slightly", "subtly", "barely", "a little", "a bit", "gently", "softly", "quietly", "small", "faint",
-        "tiny", "minimal", "hint", "lightly", "discreet"],
-    1: ["calmly", "moderately", "normally", "comfortable", "relaxed", "steady", "modest", "somewhat", "moderate"],
-    2: ["clearly", "noticeably", "expressive", "big", "lively", "strongly", "warmly", "very", "really", "obvious",
-        "well toward", "pronounced", "definitely"],
-    3: ["wildly", "emphatically", "enthusiastically", "extremely", "full energy", "as strongly as possible",
-        "all out", "intensely", "huge", "ecstatic", "urgent", "immediately", "overjoyed", "maximum", "fast and wide"],
+    0: ["slightly", "slight", "subtly", "subtle", "barely", "a little", "a bit", "a tiny bit", "gently", "softly",
+        "quietly", "small", "faint", "faintly", "tiny", "minimal", "hint", "lightly", "light", "discreet",
+        "discreetly", "politely", "cautious", "cautiously", "modest", "mostly", "just a bit", "understated",
+        "low-key", "restrained", "delicately", "tentatively", "briefly"],
+    1: ["calmly", "moderately", "normally", "comfortable", "relaxed", "steady", "somewhat", "moderate",
+        "friendly", "simple", "simply", "casually", "some", "regular", "ordinary", "easy"],
+    2: ["clearly", "clear", "noticeably", "noticeable", "expressive", "big", "lively", "strongly", "strong",
+        "warmly", "very", "really", "obvious", "obviously", "pronounced", "definitely", "firm", "firmly",
+        "eagerly", "closely", "deliberate", "deliberately", "heartfelt", "tenderly", "fully", "plenty",
+        "visibly", "energetic", "happily", "large"],
+    3: ["wildly", "wild", "emphatically", "emphatic", "enthusiastically", "extremely", "full energy",
+        "as strongly as possible", "all out", "intensely", "intense", "huge", "ecstatic", "urgent", "urgently",
+        "immediately", "overjoyed", "maximum", "fast and wide", "vigorously", "enormous", "exuberant",
+        "biggest", "tightest", "hardest", "as hard as", "as far as possible", "as you can", "possible",
+        "like crazy", "completely", "totally", "absolutely", "right now", "right away", "frantic", "frantically",
+        "explosive", "over the top", "ever"],
 }
+_NEGATION = re.compile(r"\b(?:not|no|nothing|never|without|don't|dont|avoid)\b(?:\W+\w+){0,2}\W+$", re.IGNORECASE)
+_DEGREE_RE = [(level, w, re.compile(r"\b" + re.escape(w) + r"\b", re.IGNORECASE))
+              for level, words in DEGREE.items() for w in words]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,29 +173,56 @@ def intent_embeddings() -> np.ndarray:
 
 @functools.lru_cache(maxsize=1)
 def _prototypes():
+    """Embeddings of spec C, computed once: intent prototypes ``(K, 384)``, their owner intent ``(K,)``
+    and the four intensity descriptions ``(4, 384)``."""
     texts = _intent_texts()
-    flat = [t for group in texts for t in group]
-    e = embed(flat)
+    e = embed([t for group in texts for t in group])
     owner = np.repeat(np.arange(len(INTENTS)), [len(g) for g in texts])
-    inten = embed([voc.INTENSITY_DESCRIPTIONS[z] for z in INTENSITIES])
+    inten = embed([f"{z}: performed {voc.INTENSITY_DESCRIPTIONS[z]}" for z in INTENSITIES])
     return e, owner, inten
 
 
+_INTENSIFIERS = {"very", "really", "so", "extremely", "super", "incredibly"}
+
+
 def degree_estimate(text: str) -> float | None:
-    """Intensity level in [0, 3] called for by the text's degree cues, or None if it has none."""
-    low = text.lower()
+    """Intensity level in [0, 3] called for by the text's degree cues, or None if it has none.
+
+    Cues: degree words (a negated strong word, "nothing big", counts as subtle; an intensifier before a
+    degree word pushes that word's level outward), exclamation marks and words in capitals.
+    """
     votes = []
-    for level, words in DEGREE.items():
-        for w in words:
-            if re.search(r"\b" + re.escape(w) + r"\b", low):
-                votes.append(level)
+    spans = []
+    for level, word, pattern in _DEGREE_RE:
+        for hit in pattern.finditer(text):
+            if any(a <= hit.start() < b for a, b in spans):  # "a tiny bit" already counted, skip "a bit"
+                continue
+            spans.append((hit.start(), hit.end()))
+            before = text[: hit.start()]
+            if level >= 2 and _NEGATION.search(before):
+                votes.append(0.0)
+                continue
+            prev = re.findall(r"[A-Za-z']+", before[-20:])
+            if word in _INTENSIFIERS and re.match(r"\W+(\w+)", text[hit.end():]) and any(
+                    p.match(text, hit.end() + 1) for _, w, p in _DEGREE_RE if w not in _INTENSIFIERS):
+                continue  # "very" only strengthens the degree word after it
+            if prev and prev[-1].lower() in _INTENSIFIERS:
+                level = 0.0 if level <= 1 else 3.0
+            votes.append(float(level))
     bangs = text.count("!")
     if bangs:
-        votes.append(min(3, 1.5 + bangs))
-    letters = [c for c in text if c.isalpha()]
-    if len(letters) > 8 and sum(c.isupper() for c in letters) / len(letters) > 0.6:
-        votes.append(3)
+        votes.append(3.0 if bangs >= 2 else 2.0)
+    shouted = [w for w in re.findall(r"\b[A-Z]{2,}\b", text) if w not in {"OK", "TV", "AI", "ID"}]
+    if len(shouted) >= 2:
+        votes.append(3.0)
     return float(np.mean(votes)) if votes else None
+
+
+def _num_tokens(text: str) -> int:
+    from jgrounding import encoder
+
+    enc = encoder.tokenizer().encode(text)  # the tokenizer truncates; overflow says there was more
+    return len(enc.ids) + sum(len(o.ids) for o in enc.overflowing)
 
 
 def _english_fraction(text: str) -> float:
@@ -149,20 +232,36 @@ def _english_fraction(text: str) -> float:
     return sum(c.isascii() for c in letters) / len(letters)
 
 
-def ground_embedded(text: str) -> Grounding:
-    e, owner, inten = _prototypes()
-    r = embed([text])[0]
+def intent_scores(r: np.ndarray, text: str) -> np.ndarray:
+    """Similarity of the response to each intent's part of spec C ``(16,)``: a soft maximum of the cosine
+    to its prototypes plus ``LEXICAL_WEIGHT`` when the text names the intent's action."""
+    e, owner, _ = _prototypes()
     sims = e @ r
-    intent_sim = np.array([sims[owner == m].max() for m in range(len(INTENTS))])
+    scores = np.empty(len(INTENTS))
+    for m in range(len(INTENTS)):
+        s = sims[owner == m]
+        # Soft maximum (temperature 0.05): close to the best prototype, rewards several matching ones.
+        scores[m] = s.max() + 0.05 * np.log(np.mean(np.exp((s - s.max()) / 0.05)))
+    lexical = np.array([bool(_LEXICAL_RE[m].search(text)) for m in INTENTS], dtype=float)
+    return scores + LEXICAL_WEIGHT * lexical
+
+
+def ground_embedded(text: str) -> Grounding:
+    """Eq. (3) offline: argmin over (m, z) of L_sem(r, d_{m,z}) with our MiniLM; see the module docstring."""
+    _, _, inten = _prototypes()
+    r = embed([text])[0]
+    intent_sim = intent_scores(r, text)
     cue = degree_estimate(text)
     emb_level = float(np.dot(np.arange(4), _softmax(inten @ r / 0.05)))
-    z_hat = emb_level if cue is None else 0.75 * cue + 0.25 * emb_level
-    # Eq. (3): argmin over the tuple space of the semantic mismatch.
-    loss = (1.0 - intent_sim)[:, None] + INTENSITY_WEIGHT * np.abs(np.arange(4)[None] - z_hat)[None, :] / 3.0
-    m, z = np.unravel_index(np.argmin(loss[0] if loss.ndim == 3 else loss), (len(INTENTS), 4))
+    # Degree words are the strong evidence; without any, lean on "moderate" and let the embedding nudge.
+    z_hat = 0.8 * cue + 0.2 * emb_level if cue is not None else 0.7 * 1.0 + 0.3 * emb_level
+    # Eq. (3): argmin over the tuple space M x Z of the semantic mismatch.
+    loss = (1.0 - intent_sim)[:, None] + INTENSITY_WEIGHT * np.abs(np.arange(4)[None] - z_hat) / 3.0
+    m, z = np.unravel_index(np.argmin(loss), loss.shape)
     top2 = np.sort(intent_sim)[-2:]
     margin = float(top2[1] - top2[0])
-    confidence = float(np.clip(2.0 * (top2[1] - 0.2) + 4.0 * margin, 0.0, 1.0))
+    # Sure only when the best intent is both similar in absolute terms and ahead of the runner-up.
+    confidence = float(np.clip((top2[1] - MIN_SIMILARITY) / 0.25, 0.0, 1.0) * np.clip(margin / 0.06, 0.0, 1.0) ** 0.5)
     reasons = []
     if _english_fraction(text) < 0.5:
         confidence *= 0.3
@@ -171,14 +270,20 @@ def ground_embedded(text: str) -> Grounding:
     if len(words) < 2:
         confidence *= 0.3
         reasons.append("too few words")
-    if top2[1] < 0.2:
+    named = [INTENTS[m] for m in range(len(INTENTS)) if _LEXICAL_RE[INTENTS[m]].search(text)]
+    if len(named) >= 3:
+        confidence *= 0.5
+        reasons.append("names several behaviours: " + ", ".join(named))
+    if top2[1] < MIN_SIMILARITY:
         reasons.append("no intent is similar to the text")
+    if len(text) > 250 and _num_tokens(text) > MAX_TOKENS:  # a token spans at least one character
+        reasons.append(f"long text: only its first {MAX_TOKENS} tokens were read")
     confident = confidence >= CONFIDENCE_THRESHOLD and not reasons
     if not confident and not reasons:
         reasons.append("ambiguous between intents")
     return Grounding(intent=INTENTS[int(m)], intensity=INTENSITIES[int(z)], confidence=round(confidence, 4),
                      backend="embedded", confident=confident, reason="; ".join(reasons),
-                     scores=tuple(float(s) for s in intent_sim))
+                     scores=tuple(round(float(s), 4) for s in intent_sim))
 
 
 def _softmax(x):

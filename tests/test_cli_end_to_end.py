@@ -72,3 +72,16 @@ def test_quick_ablation_end_to_end(tmp_path):
     assert cnn_div < 1e-6 < rows["tuple_spline_rf"]["diversity"][0]  # RF beats the CNNs on diversity
     assert (tmp_path / "ablation.md").read_text().count("|") > 50
     assert (tmp_path / "ablation.csv").read_text().count("\n") == 6
+
+
+def test_interactive_loop_keeps_history(tmp_path):
+    import io
+
+    from jgrounding import interact
+
+    out = io.StringIO()
+    interact.main(["--out", str(tmp_path)], stdin=io.StringIO("Wave hello to the user!\n\n:history\n:quit\n"),
+                  stdout=out)
+    text = out.getvalue()
+    assert "-> (greeting," in text and "greeting/" in text.split(":history")[-1] + text
+    assert (tmp_path / "turn001.png").stat().st_size > 1000

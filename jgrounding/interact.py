@@ -1,0 +1,84 @@
+"""Interactive loop: ``python -m jgrounding.interact``.
+
+Type a response plan ("User seems sad; respond calmly") and see the grounded tuple, a tendon plot and,
+with ``:render``, the simulated motion. ``obs: <scene> | <what the user said>`` asks the MLLM for a
+response first (Eq. 2, needs JGROUNDING_MLLM_URL), with the short history of past tuples. Commands:
+``:help``, ``:history``, ``:render``, ``:quit``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = __doc__.split("\n\n", 1)[1]
+
+
+def main(argv=None, stdin=None, stdout=None) -> int:
+    stdin, stdout = stdin or sys.stdin, stdout or sys.stdout
+    p = argparse.ArgumentParser(prog="python -m jgrounding.interact", description="Interactive grounding loop.")
+    p.add_argument("--out", default="interact_out")
+    p.add_argument("--backend", choices=("embedded", "mllm"), default="embedded")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args(argv)
+
+    import jax
+
+    from jgrounding import plotting, render
+    from jgrounding.sampling import sample
+    from jgrounding.semantics import ground
+
+    out = Path(args.out)
+    history: list[tuple[str, str]] = []
+    last = None
+    turn = 0
+    print("jgrounding interactive: type a response, 'obs: scene | utterance', or :help", file=stdout)
+    for line in stdin:
+        line = line.strip()
+        if not line:
+            continue
+        if line in (":quit", ":q", "exit"):
+            break
+        if line == ":help":
+            print(HELP, file=stdout)
+            continue
+        if line == ":history":
+            print(", ".join(f"{m}/{z}" for m, z in history) or "(empty)", file=stdout)
+            continue
+        if line == ":render":
+            if last is None:
+                print("nothing to render yet", file=stdout)
+            else:
+                print(f"motion: {render.render_motion(last, out / f'turn{turn:03d}.gif')}", file=stdout)
+            continue
+        text = line
+        if line.startswith("obs:"):
+            from jgrounding import mllm
+
+            scene, _, said = line[4:].partition("|")
+            try:
+                text = mllm.reason(mllm.Observation(visual=scene.strip(), transcript=said.strip()), history)
+                print(f"response: {text}", file=stdout)
+            except OSError as e:
+                print(f"MLLM unavailable ({e}); grounding the observation text directly", file=stdout)
+                text = f"{scene.strip()} {said.strip()}"
+        try:
+            g = ground(text, backend=args.backend)
+        except (ValueError, TypeError) as e:
+            print(f"error: {e}", file=stdout)
+            continue
+        turn += 1
+        history.append((g.intent, g.intensity))
+        flag = "" if g.confident else f"  (low confidence: {g.reason})"
+        print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
+        u = sample(jax.random.fold_in(jax.random.key(args.seed), turn), g.intent, g.intensity, num_samples=8)
+        last = u[0]
+        print(f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=f'{g.intent} / {g.intensity}')}",
+              file=stdout)
+        stdout.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
