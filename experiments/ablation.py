@@ -56,14 +56,13 @@ def mean_std(x) -> tuple[float, float]:
 def evaluate(method, trained, lib, cfg, cond_eval, key):
     ho = lib.heldout
     k_gen, k_lat = jax.random.split(key)
-    t0 = time.perf_counter()
-    u = methods.generate(trained, cond_eval, ho.intensity, k_gen, num_samples=cfg.k_div, steps=cfg.euler_steps)
-    batch_s = time.perf_counter() - t0  # includes compilation on first use; re-timed below
+    methods.generate(trained, cond_eval, ho.intensity, k_gen, num_samples=cfg.k_div, steps=cfg.euler_steps)  # compile
     t0 = time.perf_counter()
     u = methods.generate(trained, cond_eval, ho.intensity, k_gen, num_samples=cfg.k_div, steps=cfg.euler_steps)
     batch_s = time.perf_counter() - t0
     r = np.asarray(metrics.rms(u, ho.u[None, :, None]))  # (S, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)  # (S,)
+    cov = np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)  # (S,)
     lat = methods.latency_fn(trained, 0, steps=cfg.euler_steps)
     jax.block_until_ready(lat(cond_eval[0], ho.intensity[0], k_lat))
     times = []
@@ -71,7 +70,7 @@ def evaluate(method, trained, lib, cfg, cond_eval, key):
         t0 = time.perf_counter()
         jax.block_until_ready(lat(cond_eval[j], ho.intensity[j], jax.random.fold_in(k_lat, j)))
         times.append(time.perf_counter() - t0)
-    return u, r, div, 1e3 * float(np.mean(times)), u.shape[0] * u.shape[1] * u.shape[2] / batch_s
+    return u, r, div, cov, 1e3 * float(np.mean(times)), u.shape[0] * u.shape[1] * u.shape[2] / batch_s
 
 
 def physics(u_seed0, lib, cfg):
@@ -92,7 +91,7 @@ def run(cfg: AblationConfig) -> dict:
     train_texts = semantics.embed([t for row in lib.train.texts for t in row]).reshape(len(lib.train), -1, 384)
     heldout_text = semantics.embed([row[0] for row in lib.heldout.texts])
     train_cfg = TrainConfig(steps=cfg.steps, chunk=min(1000, cfg.steps))
-    rows, per_sample = {}, {}
+    rows, per_sample, samples = {}, {}, {}
     key = jax.random.key(2026)
     for method in cfg.methods:
         raw = methods.spec(method).condition == "raw"
@@ -105,12 +104,15 @@ def run(cfg: AblationConfig) -> dict:
                           "config": dataclasses.asdict(train_cfg), "library_sha256": library.file_hash(),
                           "step": cfg.steps})
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
-        u, r, div, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval, jax.random.fold_in(key, len(rows)))
+        u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
+                                                      jax.random.fold_in(key, len(rows)))
         phys = physics(u[0], lib, cfg)
+        samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
         rows[method] = {
             "success": mean_std(succ), "success_all_samples": mean_std((r <= cfg.tau).mean(axis=(1, 2))),
-            "rms": mean_std(r.mean(axis=(1, 2))), "diversity": mean_std(div), "time_ms": lat_ms,
+            "rms": mean_std(r.mean(axis=(1, 2))), "diversity": mean_std(div), "coverage": mean_std(cov),
+            "time_ms": lat_ms,
             "throughput_per_s": throughput, "train_s": train_s, **phys,
         }
         per_sample[method] = r
@@ -127,8 +129,13 @@ def run(cfg: AblationConfig) -> dict:
                 else np.flatnonzero(~same)
             pick.append(lib.train.u[rng.choice(pool)])
         ref_phys[name] = physics(np.stack(pick)[:, None], lib, dataclasses.replace(cfg, physics_samples=1))
+    mean_u = metrics.tuple_mean(lib)
+    r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
+    refs["tuple_mean"] = {"success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
+                          "rms": (float(r_mean.mean()), 0.0)}
+    ref_phys["tuple_mean"] = physics(mean_u[:, None], lib, dataclasses.replace(cfg, physics_samples=1))
     return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
-            "per_sample_rms": per_sample, "date": datetime.datetime.now().isoformat(timespec="seconds"),
+            "per_sample_rms": per_sample, "samples": samples, "date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
                        f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})"}
 
@@ -137,43 +144,83 @@ def fmt(ms):
     return f"{ms[0]:.3f} ± {ms[1]:.3f}"
 
 
+REFERENCES = (("oracle", "Oracle (replay same tuple)"), ("tuple_mean", "Tuple mean (avg. of its 3 train realizations)"),
+              ("wrong_intent_any_intensity", "Wrong intent (replay)"))
+
+
 def markdown(res: dict) -> str:
     cfg = res["config"]
     lines = [f"Ablation (Table II), {len(cfg['seeds'])} seeds, {cfg['steps']} steps, K_div = {cfg['k_div']}, "
              f"tau = {cfg['tau']}, S = {cfg['euler_steps']}. {res['date']}, {res['machine']}.", "",
-             "| Method | Succ. | Succ. (all samples) | Div. | Time (ms) | Shape RMS (m) | Shape succ. | Feasible |"
-             " Paper Succ. / Div. / Time |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| Method | Succ. | Succ. (all samples) | Div. | Coverage RMS ↓ | Time (ms) | Shape RMS (m) | Shape succ. |"
+             " Feasible | Paper Succ. / Div. / Time |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for m, r in res["rows"].items():
         p = PAPER[m]
         lines.append(f"| {methods.DISPLAY[m]} | {fmt(r['success'])} | {fmt(r['success_all_samples'])} | "
-                     f"{fmt(r['diversity'])} | {r['time_ms']:.3f} | {r['shape_rms_m']:.3f} | {r['shape_success']:.3f} | "
-                     f"{r['feasible']:.3f} | {p[0]:.3f} / {p[1]:.3f} / {p[2]:.2f} |")
+                     f"{fmt(r['diversity'])} | {fmt(r['coverage'])} | {r['time_ms']:.3f} | {r['shape_rms_m']:.3f} | "
+                     f"{r['shape_success']:.3f} | {r['feasible']:.3f} | {p[0]:.3f} / {p[1]:.3f} / {p[2]:.2f} |")
     tau = float(cfg["tau"])
-    for name, label in (("oracle", "Oracle (replay same tuple)"), ("wrong_intent_any_intensity", "Wrong intent (replay)")):
+    for name, label in REFERENCES:
         s = res["references"][name]["success"][tau]
         ph = res["reference_physics"][name]
-        lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | {ph['shape_rms_m']:.3f} | "
+        lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {ph['shape_rms_m']:.3f} | "
                      f"{ph['shape_success']:.3f} | {ph['feasible']:.3f} | – |")
+    lines += ["", "Succ.: one sample per held-out tuple within τ of its reference (the paper's protocol); "
+              "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
+              "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
+              "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory "
+              "(tuple → u, spline reconstruction and safety gate included); Shape RMS: mean backbone distance to "
+              "the reference's simulated motion; Feasible: stable, contact force and tip speed near the user within "
+              "bounds (MuJoCo)."]
     return "\n".join(lines) + "\n"
 
 
+def _cmp(a, b) -> str:
+    """'higher' / 'lower' when the means differ by more than both stds, else 'tied within std'."""
+    if abs(a[0] - b[0]) <= max(a[1], b[1], 1e-9):
+        return "tied within std"
+    return "higher" if a[0] > b[0] else "lower"
+
+
 def findings(res: dict) -> list[str]:
-    r = res["rows"]
-    out = []
-    if "tuple_spline_rf" in r and "tuple_spline_ddpm" in r:
-        a, b = r["tuple_spline_rf"], r["tuple_spline_ddpm"]
-        out.append(f"RF vs DDPM success: {a['success'][0]:.3f} vs {b['success'][0]:.3f} "
-                   f"({'RF higher' if a['success'][0] > b['success'][0] else 'RF not higher'}); "
-                   f"time {a['time_ms']:.3f} vs {b['time_ms']:.3f} ms "
-                   f"({'RF faster' if a['time_ms'] < b['time_ms'] else 'RF not faster'}).")
+    """The paper's qualitative claims, checked on this run (whatever they turn out to be)."""
+    r, out = res["rows"], []
+    rf, ddpm = r.get("tuple_spline_rf"), r.get("tuple_spline_ddpm")
     cnn = [m for m in r if m.endswith("cnn")]
+    if rf and ddpm:
+        out.append(f"RF vs DDPM success: {fmt(rf['success'])} vs {fmt(ddpm['success'])} "
+                   f"(RF {_cmp(rf['success'], ddpm['success'])}; the paper: RF higher).")
+        out.append(f"RF vs DDPM time: {rf['time_ms']:.3f} vs {ddpm['time_ms']:.3f} ms (RF "
+                   f"{'faster' if rf['time_ms'] < ddpm['time_ms'] else 'not faster'}; the paper: 4.87 vs 7.86 ms). Both run "
+                   "S = 50 evaluations of the same network in one compiled loop, so equal time is expected here; "
+                   "the paper's gap comes from its DDPM implementation, not from the number of network calls.")
+    if rf and cnn:
+        for m in cnn:
+            out.append(f"RF vs {methods.DISPLAY[m]} success: {fmt(rf['success'])} vs {fmt(r[m]['success'])} "
+                       f"(RF {_cmp(rf['success'], r[m]['success'])}); coverage RMS {fmt(rf['coverage'])} vs "
+                       f"{fmt(r[m]['coverage'])} (lower is better).")
     if cnn:
         out.append("CNN diversity: " + ", ".join(f"{methods.DISPLAY[m]} {r[m]['diversity'][0]:.4f}" for m in cnn)
-                   + (" (all 0: deterministic)" if all(r[m]['diversity'][0] < 1e-6 for m in cnn) else ""))
-    if "tuple_spline_rf" in r and cnn:
-        best_cnn = max(r[m]["success"][0] for m in cnn)
-        out.append(f"RF success {r['tuple_spline_rf']['success'][0]:.3f} vs best CNN {best_cnn:.3f}.")
+                   + (" — all 0: deterministic, as in the paper." if all(r[m]["diversity"][0] < 1e-6 for m in cnn)
+                      else " — not all 0."))
+    order = [m for m in methods.METHODS if m in r]
+    if len(order) > 1 and res.get("per_sample_rms"):
+        for t in metrics.TAUS:
+            succ = {m: float((res["per_sample_rms"][m][:, :, 0] <= t).mean()) for m in order}
+            verdict, chain = metrics.ordering(succ, order)
+            out.append(f"Paper's ordering (Raw+Dense+CNN < ... < Tuple+Spline+RF) at τ = {t:.2f}: {verdict} ({chain}).")
+    mean_ref, oracle = res["references"].get("tuple_mean"), res["references"].get("oracle")
+    tau = float(res["config"]["tau"])
+    if mean_ref and oracle and rf and cnn and max(r[m]["success"][0] for m in cnn) >= rf["success"][0]:
+        out.append(f"Why the CNNs do not fail at τ = {tau} here: the mean of a tuple's 3 training realizations is "
+                   f"{mean_ref['rms'][0]:.3f} RMS from the held-out one (success {mean_ref['success'][tau][0]:.3f}), "
+                   f"a replayed realization {oracle['rms'][0]:.3f}, an RF sample {rf['rms'][0]:.3f}. Under a squared "
+                   "error to one reference the conditional mean is the best single guess, and in this library every "
+                   "realization of a tuple lies within τ of the others (oracle success "
+                   f"{oracle['success'][tau][0]:.3f}), so a regressor that learns the mean cannot fail at τ = {tau}. The "
+                   "paper's CNN failures need demonstrations whose variants lie farther apart than τ (its private "
+                   "library); ours are closer. RF's distributional advantage shows in diversity and coverage instead.")
     return out
 
 
@@ -192,7 +239,7 @@ def write(res: dict, out: str) -> None:
         w.writerow([m, *r["success"], *r["success_all_samples"], *r["diversity"], r["rms"][0], r["time_ms"],
                     r["throughput_per_s"], r["shape_rms_m"], r["shape_success"], r["feasible"], r["train_s"]])
     write_atomic(outdir / "ablation.csv", buf.getvalue())
-    light = {k: v for k, v in res.items() if k != "per_sample_rms"}
+    light = {k: v for k, v in res.items() if k not in ("per_sample_rms", "samples")}
     write_atomic(outdir / "ablation.json", json.dumps(light, indent=1, default=float))
     b = io.BytesIO()
     np.savez(b, **res["per_sample_rms"])
@@ -223,6 +270,10 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     res = run(cfg)
     write(res, cfg.out)
+    from experiments import ablation_figures
+
+    for path in ablation_figures.write(res["samples"], load_library(), cfg.out):
+        print(f"wrote {path}")
     print()
     print(markdown(res))
     for f in findings(res):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 SAMPLERS = ("euler", "midpoint", "rk4")
 DDPM_SAMPLERS = ("ancestral", "ddim")
@@ -23,27 +24,47 @@ def rf_loss(velocity, c, key):
     return jnp.mean((velocity(c_lam, lam) - (c - eps)) ** 2)
 
 
-def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler"):
-    """Eq. (rf_inference): integrate dc/dlambda = v from lambda = 0 (noise ``eps``) to 1 in ``steps``."""
-    dt = 1.0 / steps
+_RF_OFFSETS = {"euler": (0.0,), "midpoint": (0.0, 0.5), "rk4": (0.0, 0.5, 1.0)}  # evaluation times per step / dt
 
-    def v(x, t):
-        return velocity(x, jnp.full(x.shape[:1], t))
 
-    def body(k, x):
-        t = k * dt
-        if sampler == "euler":
-            return x + dt * v(x, t)
-        if sampler == "midpoint":
-            return x + dt * v(x + 0.5 * dt * v(x, t), t + 0.5 * dt)
-        k1 = v(x, t)
-        k2 = v(x + 0.5 * dt * k1, t + 0.5 * dt)
-        k3 = v(x + 0.5 * dt * k2, t + 0.5 * dt)
-        k4 = v(x + dt * k3, t + dt)
-        return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+def _time_features(grid: np.ndarray, embed_time):
+    """The network's time input at every evaluation of a sampler, computed once before its loop.
 
+    ``grid``: the static evaluation times ``(steps, n)``. Without ``embed_time`` the velocity gets the
+    time itself; with it, ``embed_time(t (steps * n,)) -> (steps * n, F)`` (a model's time embedding
+    and its share of the first layer) is evaluated in one batch instead of once per network call.
+    """
+    if embed_time is None:
+        return jnp.asarray(grid, jnp.float32), lambda x, f: jnp.full(x.shape[:1], f)
+    feats = embed_time(jnp.asarray(grid.reshape(-1), jnp.float32))
+    return feats.reshape(grid.shape + feats.shape[-1:]), lambda x, f: f
+
+
+def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None):
+    """Eq. (rf_inference): integrate dc/dlambda = v from lambda = 0 (noise ``eps``) to 1 in ``steps``.
+
+    ``velocity(x, t)`` with ``t`` of shape ``(B,)``; or, with ``embed_time``, ``velocity(x, f)`` with
+    ``f = embed_time(t)`` precomputed for every step (see :func:`_time_features`).
+    """
     if sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(SAMPLERS)}")
+    dt = 1.0 / steps
+    grid = (np.arange(steps)[:, None] + np.asarray(_RF_OFFSETS[sampler])[None]) * dt
+    feats, as_input = _time_features(grid, embed_time)
+
+    def body(k, x):
+        f = feats[k]
+        v = lambda y, i: velocity(y, as_input(y, f[i]))  # noqa: E731
+        if sampler == "euler":
+            return x + dt * v(x, 0)
+        if sampler == "midpoint":
+            return x + dt * v(x + 0.5 * dt * v(x, 0), 1)
+        k1 = v(x, 0)
+        k2 = v(x + 0.5 * dt * k1, 1)
+        k3 = v(x + 0.5 * dt * k2, 1)
+        k4 = v(x + dt * k3, 2)
+        return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
     return jax.lax.fori_loop(0, steps, body, eps)
 
 
@@ -69,15 +90,21 @@ def ddpm_loss(noise_pred, c, key, steps: int = DDPM_STEPS):
     return jnp.mean((noise_pred(x_t, i / steps) - eps) ** 2)
 
 
-def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "ancestral", sample_steps=None):
-    """Reverse diffusion from ``x_T``: ``ancestral`` (all ``steps``) or ``ddim`` (``sample_steps``, eta 0)."""
+def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "ancestral", sample_steps=None,
+                embed_time=None):
+    """Reverse diffusion from ``x_T``: ``ancestral`` (all ``steps``) or ``ddim`` (``sample_steps``, eta 0).
+
+    ``noise_pred(x, t)`` with ``t = step / steps`` of shape ``(B,)``, or ``noise_pred(x, embed_time(t))``.
+    """
     betas, alphas, abar = ddpm_schedule(steps)
     if sampler == "ancestral":
+        feats, as_input = _time_features((np.arange(steps)[::-1] / steps)[:, None], embed_time)
+
         def body(k, carry):
             x, key = carry
             i = steps - 1 - k
             key, sub = jax.random.split(key)
-            eps = noise_pred(x, jnp.full(x.shape[:1], i / steps))
+            eps = noise_pred(x, as_input(x, feats[k, 0]))
             mean = (x - betas[i] / jnp.sqrt(1 - abar[i]) * eps) / jnp.sqrt(alphas[i])
             var = betas[i] * (1 - jnp.where(i > 0, abar[i - 1], 1.0)) / (1 - abar[i])
             noise = jnp.where(i > 0, 1.0, 0.0) * jax.random.normal(sub, x.shape)
@@ -87,12 +114,14 @@ def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "a
     if sampler != "ddim":
         raise ValueError(f"unknown DDPM sampler {sampler!r}; valid: {', '.join(DDPM_SAMPLERS)}")
     n = sample_steps or steps
-    idx = jnp.round(jnp.linspace(steps - 1, 0, n)).astype(jnp.int32)
+    idx_np = np.round(np.linspace(steps - 1, 0, n)).astype(np.int32)
+    idx = jnp.asarray(idx_np)
+    feats, as_input = _time_features((idx_np / steps)[:, None], embed_time)
 
     def body(k, x):
         i = idx[k]
         prev = jnp.where(k + 1 < n, abar[idx[jnp.minimum(k + 1, n - 1)]], 1.0)
-        eps = noise_pred(x, jnp.full(x.shape[:1], i / steps))
+        eps = noise_pred(x, as_input(x, feats[k, 0]))
         x0 = (x - jnp.sqrt(1 - abar[i]) * eps) / jnp.sqrt(abar[i])
         return jnp.sqrt(prev) * x0 + jnp.sqrt(1 - prev) * eps
 

@@ -66,8 +66,16 @@ class Library:
 
 
 def _reduce(candidates: np.ndarray, num_controls: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    controls = np.asarray(splines.fit(candidates.astype(np.float32), num_controls=num_controls))
-    raw = np.asarray(splines.reconstruct(controls))
+    """Eq. (ci) and R(c) on the spline basis, in float64 NumPy, then rounded once to float32.
+
+    The same least squares as :func:`splines.fit` / :func:`splines.reconstruct`, but not through XLA's
+    float32 einsum, whose accumulation order depends on the CPU's vector units: that made the library
+    differ in the last bits between machines, and regeneration must be byte-identical everywhere.
+    """
+    steps = candidates.shape[-2]
+    pinv, basis = splines._pinv_np(steps, num_controls), splines._basis_np(steps, num_controls)
+    controls = np.einsum("pt,btj->bjp", pinv, candidates.astype(np.float64)).astype(np.float32)
+    raw = np.einsum("tp,bjp->btj", basis, controls.astype(np.float64)).astype(np.float32)
     return controls, raw, np.asarray(safety.make_safe(raw))
 
 

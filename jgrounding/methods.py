@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import flows, safety, splines, training
+from jgrounding import distributed, flows, safety, splines, training
 from jgrounding.models import CNNRegressor, VelocityMLP
 
 METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm", "tuple_spline_rf")
@@ -124,8 +124,11 @@ def init(method: str, seeds, num_controls: int = 4):
 
 def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainConfig = training.TrainConfig(),
           *, intent_emb=None, text_emb=None, num_controls: int = 4, progress: bool = True,
-          initial_states=None, on_chunk=None) -> Trained:
-    """Train ``method`` on ``library.train`` for every seed at once (vmap); returns :class:`Trained`."""
+          initial_states=None, on_chunk=None, mesh=None) -> Trained:
+    """Train ``method`` on ``library.train`` for every seed at once (vmap); returns :class:`Trained`.
+
+    ``mesh``: split the seeds over the devices of a :func:`jgrounding.distributed.make_mesh` mesh.
+    """
     from jgrounding import semantics
 
     intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb
@@ -136,7 +139,7 @@ def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainCon
         keys = jnp.stack([jax.random.fold_in(jax.random.key(int(s)), 1) for s in seeds])
         initial_states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
     states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
-                                    on_chunk=on_chunk)
+                                    on_chunk=on_chunk, mesh=mesh)
     return Trained(method, graphdef, states.params, tuple(int(s) for s in seeds), num_controls, losses)
 
 
@@ -152,34 +155,47 @@ def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: 
         return safety.make_safe(u)
     dim = 4 * (num_controls if s.representation == "spline" else T)
     eps = jax.random.normal(key, (b, dim))
-    ctx = model.context(cond, intensity)  # precomputed once, reused by every flow step
-    net = lambda x, t: model.velocity(x, t, ctx)  # noqa: E731
+    # What does not change across flow steps is computed once, before the sampler's loop: the
+    # condition's share of the first layer, and the time embedding's share for every step.
+    ctx = model.context(cond, intensity)
+    net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)  # noqa: E731
     if s.generator == "rf":
-        x = flows.rf_sample(net, eps, steps=steps, sampler=sampler)
+        x = flows.rf_sample(net, eps, steps=steps, sampler=sampler, embed_time=model.time_context)
     else:
         k2 = jax.random.fold_in(key, 1)
         x = flows.ddpm_sample(net, eps, k2, sampler="ancestral" if sampler == "euler" else sampler,
-                              sample_steps=steps)
+                              sample_steps=steps, embed_time=model.time_context)
     y = _decode(x)
     u = splines.reconstruct(y.reshape(b, 4, num_controls)) if s.representation == "spline" else y.reshape(b, T, 4)
     return safety.make_safe(u)
 
 
 def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num_samples: int = 30, *,
-             sampler: str = "euler", steps: int = 50, batch: int = 640) -> np.ndarray:
-    """u ``(num_seeds, N, K, 150, 4)`` for conditions ``cond (N, 384)``, ``intensity (N,)``."""
+             sampler: str = "euler", steps: int = 50, batch: int = 640, mesh=None) -> np.ndarray:
+    """u ``(num_seeds, N, K, 150, 4)`` for conditions ``cond (N, 384)``, ``intensity (N,)``.
+
+    ``mesh``: a :func:`jgrounding.distributed.make_mesh` mesh; the flattened (condition x sample)
+    batch is then split over its devices. ``batch`` is rounded up to a multiple of the device count;
+    the noise depends on the batch layout, so the result equals the single-device run with that batch.
+    """
     n = cond.shape[0]
     cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), num_samples, axis=0)
     inten_k = jnp.repeat(jnp.asarray(intensity, jnp.int32), num_samples, axis=0)
-    fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls)
+    fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh)
     keys = jax.random.split(key, len(trained.seeds))
+    params = trained.params
+    if mesh is not None:
+        batch = -(-batch // mesh.size) * mesh.size
+        params = distributed.replicate(params, mesh)
     outs = []
     for i in range(0, n * num_samples, batch):
         sub = jax.vmap(lambda k: jax.random.fold_in(k, i))(keys)
         c, z = cond_k[i:i + batch], inten_k[i:i + batch]
         pad = batch - c.shape[0]
         c, z = jnp.pad(c, ((0, pad), (0, 0))), jnp.pad(z, (0, pad))
-        outs.append(np.asarray(fn(trained.params, c, z, sub))[:, : batch - pad])
+        if mesh is not None:
+            (c, z), sub = distributed.shard((c, z), mesh), distributed.replicate(sub, mesh)
+        outs.append(distributed.gather(fn(params, c, z, sub))[:, : batch - pad])
     u = np.concatenate(outs, axis=1)
     return u.reshape(len(trained.seeds), n, num_samples, T, 4)
 
@@ -187,14 +203,21 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
 _GEN_CACHE: dict = {}
 
 
-def _generate_fn(method, graphdef, sampler, steps, num_controls):
-    key = (method, id(graphdef), sampler, steps, num_controls)
+def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None):
+    """``jit(vmap over seeds(sample_one))``; with a mesh the batch axis is split over its devices."""
+    key = (method, id(graphdef), sampler, steps, num_controls, mesh)
     if key not in _GEN_CACHE:
         def one(params, cond, inten, k):
             return sample_one(method, graphdef, params, cond, inten, k, sampler=sampler, steps=steps,
                               num_controls=num_controls)
 
-        _GEN_CACHE[key] = jax.jit(jax.vmap(one, in_axes=(0, None, None, 0)))
+        fn = jax.vmap(one, in_axes=(0, None, None, 0))
+        if mesh is None:
+            _GEN_CACHE[key] = jax.jit(fn)
+        else:
+            rep, split = distributed.sharding(mesh), distributed.sharding(mesh, distributed.AXIS)
+            _GEN_CACHE[key] = jax.jit(fn, in_shardings=(rep, split, split, rep),
+                                      out_shardings=distributed.sharding(mesh, None, distributed.AXIS))
     return _GEN_CACHE[key]
 
 

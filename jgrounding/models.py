@@ -57,11 +57,16 @@ class VelocityMLP(nnx.Module):
         w = self.l1.kernel.value[dim + TIME_DIM:]
         return self.cond(text_emb, intensity) @ w + self.l1.bias.value
 
-    def velocity(self, x, t, context):
-        """One network evaluation given a precomputed :meth:`context` (the sampler's inner loop)."""
+    def time_context(self, t):
+        """The flow time's share of the first layer ``(n,) -> (n, width)``: a sampler computes it for all
+        its steps at once, before its loop (the schedule is fixed)."""
         dim = self.l4.out_features
-        w = self.l1.kernel.value
-        h = nnx.silu(x @ w[:dim] + sinusoidal(t) @ w[dim:dim + TIME_DIM] + context)
+        return sinusoidal(t) @ self.l1.kernel.value[dim:dim + TIME_DIM]
+
+    def velocity(self, x, time_context, context):
+        """One network evaluation from precomputed :meth:`time_context` and :meth:`context` rows."""
+        dim = self.l4.out_features
+        h = nnx.silu(x @ self.l1.kernel.value[:dim] + time_context + context)
         h = nnx.silu(self.l2(h))
         h = nnx.silu(self.l3(h))
         return self.l4(h)

@@ -1,20 +1,31 @@
 """MJX engine for :func:`jgrounding.trunk.rollout`: ``jit(vmap(scan over control steps))``.
 
 Each control step holds the command for ``SUBSTEPS`` physics steps (an inner ``lax.scan``); the outer
-scan records the backbone, tendon lengths and touch force at the end of each control step. One
+scan records the backbone, tendon lengths and the normal force on the user at the end of each control
+step.
+
+Sensors are disabled in the MJX model: everything is read from the state directly. The user force is
+the sum of the contact normal forces (every contact in the model involves the user: the segments do
+not collide with each other), which is what the native engine's ``touch`` sensor over the user
+measures (checked equal to float precision). Reading MJX's own touch sensor instead would fail on the
+contact-free model (MJX 3.3.7 cannot evaluate a touch sensor when the model has no contact pairs) and
+costs a ray cast per contact and step. One
 compiled function per (batch size, contact) pair, cached; call :func:`enable_compilation_cache`
 (done by the experiments and the test suite) to make compilation a one-time cost across processes.
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import mujoco
 from mujoco import mjx
+from mujoco.mjx._src import support as mjx_support  # contact_force_dim: pyramid -> normal force
 
 from jgrounding import trunk
 
@@ -30,9 +41,16 @@ def enable_compilation_cache(path: str | Path = CACHE_DIR) -> None:
 
 @functools.lru_cache(maxsize=2)
 def _model(contact: bool):
-    m = trunk.load_model(None, contact)
+    m = copy.copy(trunk.load_model(None, contact))  # a copy: the cached native model keeps its sensors
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
     body_ids = np.array([m.body(f"seg{i}").id for i in range(trunk.NUM_SEGMENTS)])
     return m, mjx.put_model(m), body_ids, m.site("tip").id
+
+
+def _user_force(mx, d) -> jax.Array:
+    """Total contact normal force (N) on the user; inactive contacts contribute 0."""
+    dims = sorted(set(np.asarray(d._impl.contact.dim).tolist()))  # static: fixed by the model
+    return sum((mjx_support.contact_force_dim(mx, d, dim)[0][:, 0].sum() for dim in dims), jnp.zeros(()))
 
 
 @functools.lru_cache(maxsize=8)
@@ -49,7 +67,7 @@ def _compiled(contact: bool):
             d = d.replace(ctrl=ctrl)
             d, _ = jax.lax.scan(substep, d, None, length=trunk.SUBSTEPS)
             points = jnp.concatenate([d.xpos[body_ids], d.site_xpos[tip_id][None]], axis=0)
-            return d, (points, d.ten_length, d.sensordata[-1])
+            return d, (points, d.ten_length, _user_force(mx, d))
 
         _, out = jax.lax.scan(control_step, d0, u)
         return out
