@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install test test-fast ablation sweep bench library clean
+.PHONY: install test test-fast ablation sweeps bench library clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,14 +26,22 @@ test: install
 test-fast: install
 	$(PY) -m pytest -q -ra -m "not slow"
 
+# The main job: Table II over 5 seeds (+ references, physics, figures), the tolerance sweep it feeds, and
+# the README's results section regenerated from results/.
 ablation: install
 	$(PY) -m experiments.ablation
-
-sweep: install
 	$(PY) -m experiments.sweep tau_rms
+	$(PY) -m experiments.readme
+
+# Beyond Table II: sampler steps and spline-control sweeps (reuse runs/ablation checkpoints), benchmarks.
+sweeps: install
+	$(PY) -m experiments.sweep steps
+	$(PY) -m experiments.sweep controls
+	$(PY) -m experiments.readme
 
 bench: install
 	$(PY) -m experiments.bench all
+	$(PY) -m experiments.readme
 
 library: install
 	$(PY) -m experiments.build_library

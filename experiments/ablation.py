@@ -253,7 +253,6 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int)
     p.add_argument("--out")
     p.add_argument("--methods", help=f"comma-separated subset of {','.join(methods.METHODS)}")
-    p.add_argument("--no-readme", action="store_true", help="do not regenerate the README results section")
     args = p.parse_args(argv)
     cfg = AblationConfig(**QUICK) if args.quick else AblationConfig()
     if args.seeds:
@@ -279,10 +278,6 @@ def main(argv=None) -> int:
     for f in findings(res):
         print("-", f)
     print(f"\nwrote {cfg.out}/ablation.{{md,csv,json}} in {time.perf_counter() - t0:.0f} s")
-    if not args.quick and not args.no_readme and not args.out:
-        from experiments import readme
-
-        readme.update()
     return 0
 
 

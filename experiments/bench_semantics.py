@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import semantics
+from jgrounding.export import write_atomic
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 DATA = Path(__file__).resolve().parent / "data" / "paraphrases.json"
@@ -31,14 +32,20 @@ def main(argv=None) -> int:
         if g.intent != it["intent"]:
             confusions[f"{it['intent']} -> {g.intent}"] = confusions.get(f"{it['intent']} -> {g.intent}", 0) + 1
     n = len(items)
-    print(f"semantic reduction on {n} held-apart paraphrases ({len(INTENTS)} intents x {len(INTENSITIES)} intensities):")
-    print(f"  intent top-1            {np.mean(intent_ok):.3f}   (goal >= 0.90)")
-    print(f"  intensity exact         {np.mean(z_exact):.3f}")
-    print(f"  intensity within one    {np.mean(z_near):.3f}   (goal >= 0.90)")
-    print(f"  latency warm            {1e3 * np.median(times):.2f} ms median, {1e3 * np.mean(times):.2f} ms mean "
-          f"(goal <= 15 ms); first call {first:.2f} s (weights + compile)")
+    lines = [f"Semantic reduction (embedded backend) on {n} held-apart paraphrases "
+             f"({len(INTENTS)} intents x {len(INTENSITIES)} intensities, experiments/data/paraphrases.json):", "",
+             "| metric | measured | goal |", "|---|---|---|",
+             f"| intent top-1 | {np.mean(intent_ok):.3f} | >= 0.90 |",
+             f"| intensity exact | {np.mean(z_exact):.3f} | – |",
+             f"| intensity within one level | {np.mean(z_near):.3f} | >= 0.90 |",
+             f"| latency per response, warm | {1e3 * np.median(times):.2f} ms median, {1e3 * np.mean(times):.2f} ms mean "
+             f"| <= 15 ms |",
+             f"| first call (weights + compile) | {first:.2f} s | – |"]
     if confusions:
-        print("  intent confusions: " + ", ".join(f"{k} x{v}" for k, v in sorted(confusions.items(), key=lambda kv: -kv[1])))
+        lines += ["", "Intent confusions: " + ", ".join(
+            f"{k} x{v}" for k, v in sorted(confusions.items(), key=lambda kv: -kv[1])) + "."]
+    print("\n".join(lines))
+    write_atomic(DATA.parent.parent.parent / "results" / "bench_semantics.md", "\n".join(lines) + "\n")
     return 0
 
 

@@ -1,18 +1,30 @@
 """Trunk physics throughput: MJX (jit(vmap(scan))) against native MuJoCo doing the same rollouts.
 
-``python -m experiments.bench trunk [--batches 64,256,1920] [--chunk 256]`` prints the MJX compile
-time separately, then env-steps/s (physics steps) for each batch size on both engines, as ratios.
+``python -m experiments.bench trunk [--batches 64,256,1920] [--chunk 256]`` prints, in one run: the MJX
+compile time cold (empty persistent cache) and again in a fresh process with the cache filled, then
+physics steps/s for each batch size on both engines, as ratios, and the tip agreement of the two.
 MJX runs every batch as padded chunks of ``--chunk`` so one compiled program serves all sizes.
+Writes results/bench_trunk.md.
 """
 from __future__ import annotations
 
 import argparse
 import os
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
 from jgrounding import load_library, trunk, trunk_mjx
+from jgrounding.export import write_atomic
+
+ROOT = Path(__file__).resolve().parent.parent
+_CACHED = ("import sys, time, numpy as np; from jgrounding import trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
+           "u = np.zeros((int(sys.argv[2]), 150, 4)); t = time.perf_counter(); "
+           "trunk_mjx.rollout_mjx(u, True, chunk=int(sys.argv[2])); print(time.perf_counter() - t)")
 
 
 def main(argv=None) -> int:
@@ -20,27 +32,42 @@ def main(argv=None) -> int:
     p.add_argument("--batches", default="64,256,1920")
     p.add_argument("--chunk", type=int, default=256)
     args = p.parse_args(argv)
-    trunk_mjx.enable_compilation_cache()
     lib = load_library()
     pool = np.concatenate([lib.train.u, lib.heldout.u])
     physics_steps = trunk.NUM_STEPS * trunk.SUBSTEPS
-    t0 = time.perf_counter()
-    trunk_mjx.rollout_mjx(pool[: args.chunk], True, chunk=args.chunk)
-    compile_s = time.perf_counter() - t0
-    print(f"MJX compile (+ first run) for chunk {args.chunk}: {compile_s:.1f} s "
-          f"(persistent cache: {trunk_mjx.CACHE_DIR})")
-    print(f"{'B':>6} {'native steps/s':>16} {'MJX steps/s':>14} {'MJX / native':>13}")
+    lines = []
+
+    def say(line=""):
+        print(line, flush=True)
+        lines.append(line)
+
+    with tempfile.TemporaryDirectory() as cache:
+        trunk_mjx.enable_compilation_cache(cache)
+        t0 = time.perf_counter()
+        trunk_mjx.rollout_mjx(pool[: args.chunk], True, chunk=args.chunk)
+        cold = time.perf_counter() - t0
+        out = subprocess.run([sys.executable, "-c", _CACHED, cache, str(args.chunk)], capture_output=True, text=True,
+                             cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+        warm = float(out.stdout.split()[-1]) if out.returncode == 0 else float("nan")
+    say(f"MJX batched rollout (chunk {args.chunk}, 150 control steps x {trunk.SUBSTEPS} substeps): compile + first run "
+        f"{cold:.1f} s cold; {warm:.1f} s in a fresh process with the persistent compilation cache filled.")
+    say("")
+    say("| B | native steps/s | MJX steps/s | MJX / native | max tip gap MJX vs native |")
+    say("|---|---|---|---|---|")
     for b in (int(x) for x in args.batches.split(",")):
         u = pool[np.arange(b) % len(pool)]
         t0 = time.perf_counter()
-        trunk.rollout(u, engine="native")
+        ref = trunk.rollout(u, engine="native")
         native = b * physics_steps / (time.perf_counter() - t0)
         t0 = time.perf_counter()
-        trunk_mjx.rollout_mjx(u, True, chunk=args.chunk)
+        got = trunk_mjx.rollout_mjx(u, True, chunk=args.chunk)
         mjx = b * physics_steps / (time.perf_counter() - t0)
-        print(f"{b:>6} {native:>16,.0f} {mjx:>14,.0f} {mjx / native:>12.2f}x", flush=True)
-    print(f"({os.cpu_count()} CPU cores; native = mujoco.rollout with one thread per core; "
-          f"{trunk.SUBSTEPS} substeps x {trunk.NUM_STEPS} control steps per rollout)")
+        gap = float(np.linalg.norm(got.tip - ref.tip, axis=-1).max())
+        say(f"| {b} | {native:,.0f} | {mjx:,.0f} | {mjx / native:.3f}x | {1e3 * gap:.2f} mm |")
+    say("")
+    say(f"{os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
+        "core; MJX = jax on CPU, float32. Commands: library trajectories, repeated to fill B.")
+    write_atomic(ROOT / "results" / "bench_trunk.md", "\n".join(lines) + "\n")
     return 0
 
 
