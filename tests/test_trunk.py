@@ -56,6 +56,25 @@ def test_bad_commands_raise(bad, match):
         trunk.rollout(bad)
 
 
+def test_contact_pruning_is_exact():
+    """Only the distal segments have contact pairs with the user: the others can never reach it."""
+    import itertools
+
+    from jgrounding import trunk_model as tm
+
+    levels = [np.array(c, float) for c in itertools.product([0, 0.5, 1.0], repeat=4)]
+    ramp = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None]
+    u = np.stack([hold(c) for c in levels] + [ramp * c for c in levels])
+    bb = trunk.rollout(u, contact=False).backbone  # no contact: the deepest reach toward the user
+    first = tm.NUM_SEGMENTS - tm.CONTACT_SEGMENTS  # segments first.. have pairs; points 0..first bound the rest
+    a, b = np.array([tm.USER_TORSO_X, 0, tm.USER_TORSO_Z[0]]), np.array([tm.USER_TORSO_X, 0, tm.USER_TORSO_Z[1]])
+    torso = trunk._segment_distance(bb[:, :, : first + 1], a, b) - tm.USER_TORSO_RADIUS - tm.BASE_RADIUS
+    assert torso.min() > 0.01
+    head = np.linalg.norm(bb - np.array(tm.USER_HEAD[:3]), axis=-1) - tm.USER_HEAD[3] - tm.BASE_RADIUS
+    assert head.min() > 0.1
+    assert trunk.load_model().npair == tm.CONTACT_SEGMENTS and trunk.load_model(None, False).npair == 0
+
+
 def test_unknown_engine():
     with pytest.raises(ValueError, match="native, mjx"):
         trunk.rollout(np.zeros((150, 4)), engine="bullet")
