@@ -1,5 +1,8 @@
 """Trunk physics throughput: MJX (jit(vmap(scan))) against native MuJoCo doing the same rollouts.
 
+``python -m experiments.bench trunk --compile`` instead measures where MJX's compile time goes: the cold
+``jit(mjx.step)`` compile of model variants (contact pairs, substep structure), each in a fresh process.
+
 ``python -m experiments.bench trunk [--batches 64,256,1920] [--chunk 256]`` prints, in one run: the MJX
 compile time cold (empty persistent cache) and again in a fresh process with the cache filled, then
 physics steps/s for each batch size on both engines, as ratios, and the tip agreement of the two.
@@ -19,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import load_library, trunk, trunk_mjx
+from jgrounding import trunk_model as tm
 from jgrounding.export import write_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -37,11 +41,67 @@ def _first_and_warm(u, chunk):
     return times
 
 
+_PROBE = """
+import sys, time, jax, mujoco
+from mujoco import mjx
+from jgrounding import trunk_model as tm
+contact, pairs, what = sys.argv[1] == "1", int(sys.argv[2]), sys.argv[3]
+m = mujoco.MjModel.from_xml_string(tm.build_xml(contact=contact, contact_segments=pairs))
+m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+mx = mjx.put_model(m)
+d = mjx.make_data(mx)
+if what == "step":
+    fn = jax.jit(mjx.step)
+else:  # one control step: SUBSTEPS physics steps in a scan, vmapped over 8 trunks
+    def ctrl(d):
+        return jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d, None, length=4)[0]
+    fn = jax.jit(jax.vmap(lambda d: ctrl(d)))
+    d = jax.tree.map(lambda x: jax.numpy.stack([x] * 8), d)
+t = time.perf_counter()
+lowered = fn.lower(mx, d) if what == "step" else fn.lower(d)
+t1 = time.perf_counter()
+compiled = lowered.compile()
+t2 = time.perf_counter()
+args = (mx, d) if what == "step" else (d,)
+jax.block_until_ready(compiled(*args))
+t3 = time.perf_counter()
+for _ in range(20):
+    out = compiled(*args)
+jax.block_until_ready(out)
+steps = 1 if what == "step" else 32
+print(t1 - t, t2 - t1, 20 * steps / (time.perf_counter() - t3))
+"""
+COMPILE_VARIANTS = (  # (label, contact, pairs, what)
+    ("no contact pairs, single step", "0", "0", "step"),
+    (f"{tm.CONTACT_SEGMENTS} pairs (shipped model), single step", "1", str(tm.CONTACT_SEGMENTS), "step"),
+    (f"{tm.NUM_SEGMENTS} pairs (every segment), single step", "1", str(tm.NUM_SEGMENTS), "step"),
+    (f"{tm.CONTACT_SEGMENTS} pairs, vmap(scan of 4 substeps)", "1", str(tm.CONTACT_SEGMENTS), "scan"),
+)
+
+
+def compile_probe() -> list[str]:
+    lines = ["| MJX model variant | trace + lower (s) | XLA compile (s) | warm physics steps/s |", "|---|---|---|---|"]
+    for label, contact, pairs, what in COMPILE_VARIANTS:
+        out = subprocess.run([sys.executable, "-c", _PROBE, contact, pairs, what], capture_output=True, text=True,
+                             cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+        trace, comp, rate = (float(x) for x in out.stdout.split()[-3:]) if out.returncode == 0 else (float("nan"),) * 3
+        lines.append(f"| {label} | {trace:.1f} | {comp:.1f} | {rate:,.0f} |")
+        print(lines[-1], flush=True)
+    return lines
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--batches", default="64,256,1920")
     p.add_argument("--chunk", type=int, default=256)
+    p.add_argument("--compile", action="store_true", help="measure where MJX compile time goes, then exit")
     args = p.parse_args(argv)
+    if args.compile:
+        lines = compile_probe()
+        lines.append(f"\nCold compiles, no persistent cache, {os.cpu_count()} CPU cores, load average "
+                     f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.trunk_mjx.")
+        write_atomic(ROOT / "results" / "bench_trunk_compile.md", "\n".join(lines) + "\n")
+        return 0
     lib = load_library()
     pool = np.concatenate([lib.train.u, lib.heldout.u])
     physics_steps = trunk.NUM_STEPS * trunk.SUBSTEPS

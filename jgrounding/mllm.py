@@ -103,7 +103,13 @@ def _post(cfg: Config, messages: list[dict]) -> str:
                                           **({"Authorization": f"Bearer {cfg.api_key}"} if cfg.api_key else {})})
     with urllib.request.urlopen(req, timeout=cfg.timeout_s) as resp:
         doc = json.loads(resp.read().decode())
-    return doc["choices"][0]["message"]["content"]
+    try:
+        content = doc["choices"][0]["message"]["content"]
+    except (KeyError, IndexError, TypeError):
+        raise ValueError(f"the server's reply is not an OpenAI chat completion: {json.dumps(doc)[:120]}")
+    if not isinstance(content, str):
+        raise ValueError(f"the server's reply has no text content (got {type(content).__name__})")
+    return content
 
 
 def parse_reply(text: str) -> tuple[str, str, float]:

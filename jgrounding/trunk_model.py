@@ -11,8 +11,10 @@ toward side j) + sum_i s_i (axial slides): the constant-curvature approximation 
 continuum robots are commonly modelled with, with the routing radius r_i tapering like the body.
 Pulling one tendon bends the trunk toward its side; pulling all four (co-contraction) cancels the
 bending and compresses the axial slides, so the trunk shortens (retract); all slack lets it hang at
-full length (extend). We chose fixed over spatial (site-routed) tendons by the numbers in
-docs/versions.md: same behaviour for the primitives, fewer kinematic terms, faster MJX compile.
+full length (extend). We chose fixed over spatial (site-routed) tendons: the same bend / curl /
+retract behaviour for the primitives with fewer kinematic terms (no wrapping geometry per step), and
+the model of the continuum-robot literature. Compile time did not decide it: SPEC §8 measured the same
+16 s single-step MJX compile for the fixed- and the spatial-tendon trunk on the pinned stack.
 
 Actuators. One ``motor`` per tendon, ``ctrlrange = [0, 1]`` (normalized pull, 0 = slack), with a
 negative gear of ``MAX_TENDON_FORCE`` so that ``u = 1`` pulls with the largest safe force. A motor
@@ -71,8 +73,9 @@ def segment_lengths(n: int = NUM_SEGMENTS) -> list[float]:
     return [TRUNK_LENGTH * x / s for x in w]
 
 
-def build_xml(n: int = NUM_SEGMENTS, contact: bool = True) -> str:
-    """MJCF text of the trunk with ``n`` segments (user contact geometry on or off)."""
+def build_xml(n: int = NUM_SEGMENTS, contact: bool = True, contact_segments: int = CONTACT_SEGMENTS) -> str:
+    """MJCF text of the trunk with ``n`` segments; contact pairs of the user's torso with the last
+    ``contact_segments`` segments (none with ``contact=False``)."""
     lengths = segment_lengths(n)
     lines = [
         '<mujoco model="elephant_trunk">',
@@ -136,7 +139,7 @@ def build_xml(n: int = NUM_SEGMENTS, contact: bool = True) -> str:
         # Contact pruning: only the distal segments can reach the user's torso, and nothing reaches the
         # head (see CONTACT_SEGMENTS); the pairs carry the same friction / solref as the geoms.
         lines.append("  <contact>")
-        for i in range(n - CONTACT_SEGMENTS, n):
+        for i in range(n - contact_segments, n):
             lines.append(f'    <pair geom1="user_torso" geom2="g{i}" condim="3" friction="0.6 0.6 0.005 0.0001 0.0001"'
                          ' solref="0.02 1"/>')
         lines.append("  </contact>")

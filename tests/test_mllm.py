@@ -21,7 +21,9 @@ class FakeServer:
                 body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
                 outer.requests.append(body)
                 reply = outer.replies.pop(0) if len(outer.replies) > 1 else outer.replies[0]
-                data = json.dumps({"choices": [{"message": {"role": "assistant", "content": reply}}]}).encode()
+                doc = reply if isinstance(reply, dict) else {"choices": [{"message": {"role": "assistant",
+                                                                                      "content": reply}}]}
+                data = json.dumps(doc).encode()
                 self.send_response(200)
                 self.send_header("Content-Type", "application/json")
                 self.send_header("Content-Length", str(len(data)))
@@ -42,6 +44,15 @@ class FakeServer:
     def __exit__(self, *exc):
         self.httpd.shutdown()
         self.httpd.server_close()
+
+
+@pytest.mark.parametrize("payload", [{"choices": []}, {"choices": [{"message": {"content": None}}]},
+                                     {"error": "overloaded"}, {"choices": "nope"}])
+def test_malformed_payloads_fall_back_not_crash(payload):
+    with FakeServer([payload]) as s:
+        g = jg.ground("Wave hello to the user!", backend="mllm", url=s.url, retries=1)
+    assert g.backend == "embedded (mllm fallback)" and ("chat completion" in g.reason or "text content" in g.reason)
+    assert len(s.requests) == 2  # asked again once, then fell back
 
 
 def test_good_reply_is_used():
