@@ -1,6 +1,9 @@
 """The library card: docs/library_card.md and docs/library/*.png, generated from the library itself.
 
-``python -m experiments.library_card`` (also run by ``experiments.build_library``).
+``python -m experiments.library_card`` (also run by ``experiments.build_library``). It reads
+assets/library.npz and never rewrites it. Figures: acceptance rates per tuple and per check, the RMS
+distance distributions within and between tuples (tau_rms marked), and one figure per intent (tendon
+curves of the 4 realizations at the pronounced intensity and the simulated motion of one of them).
 """
 from __future__ import annotations
 
@@ -8,53 +11,95 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding import load_library, metrics, render, trunk
+from jgrounding import load_library, metrics, primitives, render, screening, trunk
 from jgrounding.export import write_atomic
 from jgrounding.plotting import plot_tendons, plt, save
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
+CARD_INTENSITY = 2  # pronounced: the intensity the per-intent figures show
+FRAME_STEPS = (0, 50, 100, 149)
+
+
+def acceptance_figure(card: dict, path):
+    """Acceptance rate per (intent, intensity) tuple and the number of candidates passing each check."""
+    rates = np.array([[card["acceptance_rate"][f"{m}/{z}"] for z in INTENSITIES] for m in INTENTS])
+    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 5.2), width_ratios=(1.1, 1), layout="constrained")
+    a.imshow(rates, cmap="viridis", vmin=0, vmax=1, aspect="auto")
+    for (i, j), v in np.ndenumerate(rates):
+        a.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="k" if v > 0.6 else "w")
+    a.set_xticks(range(len(INTENSITIES)), INTENSITIES, fontsize=8)
+    a.set_yticks(range(len(INTENTS)), INTENTS, fontsize=8)
+    a.set_title("acceptance rate per tuple (accepted / tried)", fontsize=9)
+    checks = list(screening.CHECKS)
+    passed = [card["passed_per_check"][c] for c in checks]
+    tried = card["candidates_tried"]
+    b.bar(checks + ["all four"], passed + [card["candidates_accepted"]], color="tab:blue")
+    b.axhline(tried, color="k", ls="--", lw=1, label=f"tried: {tried}")
+    for x, v in enumerate(passed + [card["candidates_accepted"]]):
+        b.text(x, v + tried * 0.01, str(v), ha="center", fontsize=8)
+    b.set_ylim(0, tried * 1.12)
+    b.set_ylabel("candidates passing")
+    b.set_title("candidates passing each screening check", fontsize=9)
+    b.tick_params(axis="x", labelsize=8)
+    b.legend(fontsize=8, loc="lower left")
+    return save(fig, path)
 
 
 def distance_figure(lib, path):
     groups = metrics.within_between(lib)
     fig, ax = plt.subplots(figsize=(6.4, 3.4))
     bins = np.linspace(0, 0.9, 46)
-    for name, d in groups.items():
-        ax.hist(d, bins=bins, alpha=0.55, density=True, label=f"{name} (mean {d.mean():.3f})")
-    ax.axvline(metrics.TAU_RMS, color="k", ls="--", lw=1.2, label="τ_rms = 0.35")
+    for (name, d), color in zip(groups.items(), ("tab:blue", "tab:orange", "tab:green")):
+        # Within-tuple and adjacent-intensity distances overlap: outlines keep both visible.
+        ax.hist(d, bins=bins, density=True, color=color, alpha=0.2)
+        ax.hist(d, bins=bins, density=True, color=color, histtype="step", lw=1.6,
+                label=f"{name} (mean {d.mean():.3f}, {len(d)} pairs)")
+    ax.axvline(metrics.TAU_RMS, color="k", ls="--", lw=1.2, label=f"τ_rms = {metrics.TAU_RMS}")
     ax.set_xlabel("RMS distance between library trajectories")
     ax.set_ylabel("density")
+    num = len(lib.train) + len(lib.heldout)
+    ax.set_title(f"pairwise RMS distances among the {num} library trajectories", fontsize=9)
     ax.legend(fontsize=7)
     return save(fig, path)
 
 
 def intent_figure(lib, m: int, z: int, path):
+    """Tendon curves of the tuple's 4 realizations and the simulated motion of the first (two views)."""
     u = np.concatenate([lib.train.u, lib.heldout.u])
     sel = (np.concatenate([lib.train.intent, lib.heldout.intent]) == m) & \
           (np.concatenate([lib.train.intensity, lib.heldout.intensity]) == z)
     reals = u[sel]
-    frames, backend = render.frames(reals[0], [0, 50, 100, 149])
-    fig = plt.figure(figsize=(12, 3.2))
-    ax = fig.add_subplot(1, 5, 1)
+    fig = plt.figure(figsize=(15, 5.2), layout="constrained")
+    grid = fig.add_gridspec(2, 1 + len(FRAME_STEPS), width_ratios=(1.05,) + (1,) * len(FRAME_STEPS))
+    ax = fig.add_subplot(grid[:, 0])
     plot_tendons(ax, reals[1:], alpha=0.35, legend=False, lw=1.0)
-    plot_tendons(ax, reals[0], legend=False)
-    ax.set_title(f"{INTENTS[m]} / {INTENSITIES[z]}: 4 realizations", fontsize=8)
-    for i, (f, t) in enumerate(zip(frames, (0, 50, 100, 149))):
-        a = fig.add_subplot(1, 5, i + 2)
-        a.imshow(f)
-        a.set_axis_off()
-        a.set_title(f"t = {t * trunk.CONTROL_DT:.1f} s", fontsize=8)
-    fig.suptitle(describe(m), fontsize=9)
-    return save(fig, path)
+    plot_tendons(ax, reals[0])
+    ax.get_legend().remove()
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=8, ncol=4, loc="outside lower center")
+    for t in FRAME_STEPS:
+        ax.axvline(t / (u.shape[1] - 1), color="k", lw=0.5, ls=":")
+    ax.set_title(f"{INTENTS[m]} / {INTENSITIES[z]}: {len(reals)} realizations\n(bold: the one simulated; "
+                 "dotted: frame times)", fontsize=8)
+    for row, view in enumerate(render.BOTH_VIEWS):
+        frames, _ = render.frames(reals[0], list(FRAME_STEPS), view, labels=True, ghost=True)
+        for i, (f, t) in enumerate(zip(frames, FRAME_STEPS)):
+            a = fig.add_subplot(grid[row, i + 1])
+            a.imshow(f)
+            a.set_axis_off()
+            if row == 0:
+                a.set_title(f"t = {t * trunk.CONTROL_DT:.1f} s", fontsize=8)
+    fig.suptitle(f"{INTENTS[m]}: {describe(m)} (thin blue rod: rest posture)", fontsize=9)
+    return save(fig, path, dpi=100, colors=256)
 
 
 def write(lib=None) -> Path:
     lib = lib or load_library()
     out = DOCS / "library"
+    acceptance_figure(lib.meta, out / "acceptance.png")
     distance_figure(lib, out / "rms_distributions.png")
     for m in range(len(INTENTS)):
-        intent_figure(lib, m, 2, out / f"intent_{INTENTS[m]}.png")
+        intent_figure(lib, m, CARD_INTENSITY, out / f"intent_{INTENTS[m]}.png")
     refs = metrics.reference_baselines(lib, seed=0, draws=20)
     from experiments.references import table
 
@@ -64,6 +109,8 @@ def write(lib=None) -> Path:
     for m in INTENTS:
         rows.append(f"| {m} | " + " | ".join(f"{rates[f'{m}/{z}']:.2f}" for z in INTENSITIES) + " |")
     groups = metrics.within_between(lib)
+    var = primitives.Variation()
+    below = {k: float(np.mean(v <= metrics.TAU_RMS)) for k, v in groups.items()}
     text = f"""# Library card
 
 _Generated by `python -m experiments.library_card` from `{Path(lib.path).name}` (sha256 `{card['sha256'][:16]}…`)._
@@ -77,37 +124,45 @@ byte-identical for a seed.
 key moments — written from SPEC §2 with the elephant primitives (bending toward a side, curling, co-contraction
 retraction, release/extension, compliant contact) and refined into a code with large pairwise distance
 (`python -m experiments.design_signatures`). A candidate is a cosine-eased interpolation of the key poses with
-per-realization variation in amplitude (±12 %), timing (±0.10 of the motion), proximity (±0.10 pull of the
-toward-user tendon), key-pose noise (σ 0.07) and a left/right lean (one lateral tendon +0.13–0.22): bending
-direction. Intensity scales the pattern (0.76, 0.84, 0.92, 1.0) and shifts its tempo. Candidates are reduced by
+per-realization variation in amplitude (±{var.amplitude:.0%}), timing (±{var.timing:.2f} of the motion), proximity
+(±{var.proximity:.2f} pull of the toward-user tendon), key-pose noise (σ {var.jitter:.2f}) and a left/right lean (one
+lateral tendon +{0.6 * var.tilt:.2f}–{var.tilt:.2f}): bending direction. Intensity scales the pattern
+({', '.join(f'{x:.2f}' for x in primitives.INTENSITY_SCALE)}) and shifts its tempo. Candidates are reduced by
 Eq. (ci) to P = {card['config']['num_controls']} Catmull–Rom controls, reconstructed, passed through the safety gate,
 and screened: bounds and slew, smoothness (jerk), simulation on the trunk (stable, contact force ≤
 {trunk.MAX_CONTACT_FORCE} N, tip ≤ {trunk.MAX_TIP_SPEED_NEAR_USER} m/s within {trunk.NEAR_USER_DISTANCE} m of the user),
-and a semantic rule on the simulated shape per intent (`jgrounding/screening.py`). The first four passing
-candidates of each tuple are kept.
+and a semantic rule on the simulated shape per intent (`jgrounding/screening.py`). The first
+{card['config']['realizations']} passing candidates of each tuple are kept.
 
 **Acceptance**: {card['candidates_accepted']} of {card['candidates_tried']} candidates passed
 (per check: {', '.join(f'{k} {v}' for k, v in card['passed_per_check'].items())}).
 
 {chr(10).join(rows)}
 
+![acceptance](library/acceptance.png)
+
 **The metric is discriminative** (`python -m experiments.references`, 20 draws; mean ± std):
 
 {table(refs)}
 
-Mean RMS distance: within a tuple {groups['within tuple'].mean():.3f}; different intent at the same intensity
-{groups['different intent, same intensity'].mean():.3f}; same intent, adjacent intensity
-{groups['same intent, adjacent intensity'].mean():.3f}. Adjacent intensities of one intent are **not**
-separable at τ = 0.35 (their RMS is close to the within-tuple spread): success at τ = 0.35 measures the intent,
-and intensity only coarsely.
+Mean RMS distance (share of pairs within τ = {metrics.TAU_RMS}): within a tuple {groups['within tuple'].mean():.3f}
+({below['within tuple']:.0%}); different intent at the same intensity
+{groups['different intent, same intensity'].mean():.3f} ({below['different intent, same intensity']:.0%}); same intent,
+adjacent intensity {groups['same intent, adjacent intensity'].mean():.3f}
+({below['same intent, adjacent intensity']:.0%}). Adjacent intensities of one intent are **not** separable at
+τ = {metrics.TAU_RMS} (their RMS is close to the within-tuple spread): success at τ = {metrics.TAU_RMS} measures the
+intent, and intensity only coarsely.
 
 ![distances](library/rms_distributions.png)
 
-Per intent (pronounced intensity; tendon curves of the 4 realizations and the simulated motion of one):
+Per intent ({INTENSITIES[CARD_INTENSITY]} intensity): tendon curves of the realizations, and the simulated motion of the
+first one (bold) at four times from two views — top: side view, the user on the right; bottom: rear view, the robot's
+left on the left; the thin blue rod is the trunk at rest. Regenerate the figures with
+`python -m experiments.library_card`.
 
 """ + "\n".join(f"![{m}](library/intent_{m}.png)" for m in INTENTS) + "\n"
     path = write_atomic(DOCS / "library_card.md", text)
-    print(f"wrote {path} and {len(INTENTS) + 1} figures in {out}")
+    print(f"wrote {path} and {len(INTENTS) + 2} figures in {out}")
     return path
 
 

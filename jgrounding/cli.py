@@ -2,7 +2,9 @@
 
 Grounds the text to an (intent, intensity) tuple, samples K trajectories, and writes
 - ``tendons.png``: the tendon commands (sample 0 bold, the others faint),
-- ``motion.gif`` and ``posture.png``: the simulated trunk (MuJoCo renderer, matplotlib fallback),
+- ``motion.gif``, ``keyframes.png`` and ``posture.png``: the simulated trunk (MuJoCo renderer, matplotlib
+  fallback) from the side (user on the right) and from behind (robot's left on the left): the whole motion,
+  the postures at t = 1, 2, 3, 4, 5 s, and the final posture,
 - ``commands.csv`` / ``commands.json``: the command stream of sample 0 at the control rate, with units
   and bounds in a header, ready for a motor controller; ``samples.npy``: all K trajectories.
 
@@ -133,10 +135,11 @@ def run(args: argparse.Namespace) -> int:
 
         t0 = time.perf_counter()
         files["posture"] = str(render.render_posture(u[0], out / "posture.png"))
+        files["keyframes"] = str(render.render_keyframes(u[0], out / "keyframes.png"))
         files["motion"] = str(render.render_motion(u[0], out / "motion.gif"))
         say("render", f"rendered motion [{time.perf_counter() - t0:.1f} s]")
     for name, path in files.items():
-        say("file", f"  {name:8s} {path}", kind=name, path=path)
+        say("file", f"  {name:9s} {path}", kind=name, path=path)
     if args.quiet:
         print(out)
     return 0

@@ -36,25 +36,37 @@ def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = Tr
     return ax
 
 
-def save(fig, path: str | os.PathLike, dpi: int = 110) -> str:
-    """Save a figure atomically as PNG and close it."""
+def save(fig, path: str | os.PathLike, dpi: int = 110, colors: int | None = None) -> str:
+    """Save a figure atomically as PNG and close it; ``colors`` (e.g. 128) stores it with a palette of
+    that many colours, which keeps rendered pictures small enough for the docs."""
     from jgrounding.export import write_atomic
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
-    write_atomic(path, buf.getvalue())
+    data = buf.getvalue()
+    if colors is not None:
+        from PIL import Image
+
+        img = Image.open(io.BytesIO(data)).convert("RGB").quantize(colors, dither=Image.Dither.NONE)
+        buf = io.BytesIO()
+        img.save(buf, format="PNG", optimize=True)
+        data = buf.getvalue()
+    write_atomic(path, data)
     return str(path)
 
 
 def tendon_figure(u, path, *, title: str = "", reference=None):
     """One-panel PNG of tendon commands (samples overlaid faintly when ``u`` is ``(K, T, 4)``)."""
     u = np.asarray(u)
-    fig, ax = plt.subplots(figsize=(6.4, 3.4))
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
     if u.ndim == 3 and u.shape[0] > 1:
         plot_tendons(ax, u[1:], alpha=0.18, legend=False, lw=0.8)
         plot_tendons(ax, u[0], reference=reference)
+        title = f"{title}: sample 0 (bold) and {u.shape[0] - 1} more (faint)" if title else title
     else:
         plot_tendons(ax, u.reshape(-1, *u.shape[-2:])[0], reference=reference)
+    # Below the axes, so that it never hides a curve.
+    ax.legend(fontsize=7, ncol=4, loc="upper center", bbox_to_anchor=(0.5, -0.17), frameon=False)
     ax.set_title(title, fontsize=9)
     return save(fig, path)
