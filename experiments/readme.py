@@ -54,16 +54,25 @@ def section() -> str:
     return "\n".join(parts)
 
 
-def update(readme: Path = ROOT / "README.md") -> None:
+def _replace_block(text: str, start: str, end: str, body: str, where: Path) -> str:
+    if start not in text or end not in text:
+        raise ValueError(f"{where} lacks the markers {start} / {end}")
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{start}\n{body}\n{end}{tail}"
+
+
+def update(readme: Path = ROOT / "README.md", versions: Path = ROOT / "docs" / "versions.md") -> None:
     from jgrounding.export import write_atomic
 
-    text = readme.read_text()
-    if START not in text or END not in text:
-        raise ValueError(f"{readme} lacks the markers {START} / {END}")
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    write_atomic(readme, f"{head}{START}\n{section()}\n{END}{tail}")
+    write_atomic(readme, _replace_block(readme.read_text(), START, END, section(), readme))
     print(f"updated the results section of {readme}")
+    bench = [ROOT / "results" / n for n in ("bench_trunk.md", "bench_trunk_compile.md")]
+    if versions.exists() and any(p.exists() for p in bench):
+        body = "\n\n".join(p.read_text().strip() for p in bench if p.exists())
+        write_atomic(versions, _replace_block(versions.read_text(), "<!-- bench:trunk:start -->",
+                                              "<!-- bench:trunk:end -->", body, versions))
+        print(f"updated the trunk benchmark in {versions}")
 
 
 if __name__ == "__main__":
