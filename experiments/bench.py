@@ -1,4 +1,4 @@
-"""Benchmarks, one sub-command per stage: `python -m experiments.bench {trunk,sample,semantics,all}`.
+"""Benchmarks, one sub-command per stage: `python -m experiments.bench {trunk,sample,semantics,shard,all}`.
 
 Each sub-command lives in its own module (`experiments/bench_<name>.py`) with a `main(argv)`;
 every figure is printed beside its reference in the same run, as a ratio.

@@ -3,7 +3,9 @@
     python -m experiments.train --method tuple_spline_rf --steps 10000 --seeds 0 --out assets/checkpoints/tuple_spline_rf
 
 A run killed at any point resumes from its last chunk checkpoint (``--out``) and ends with the same
-parameters as an uninterrupted run.
+parameters as an uninterrupted run. ``--devices N`` (0 = all) splits the seeds over a device mesh; a
+multi-host job sets ``JAX_COORDINATOR_ADDRESS/JAX_NUM_PROCESSES/JAX_PROCESS_ID`` (docs/distributed.md)
+and only process 0 writes checkpoints.
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from jgrounding import checkpoints, library, load_library, methods, semantics, training
+from jgrounding import checkpoints, distributed, library, load_library, methods, semantics, training
 
 
 def main(argv=None) -> int:
@@ -24,9 +26,23 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", default="0", help="comma-separated seeds, e.g. 0,1,2,3,4")
     p.add_argument("--out", required=True, help="checkpoint directory (resumes if it holds a partial run)")
     p.add_argument("--num-controls", type=int, default=4)
+    p.add_argument("--devices", type=int, default=1, help="split the seeds over this many devices (0 = all)")
     args = p.parse_args(argv)
-    seeds = tuple(int(s) for s in args.seeds.split(","))
-    config = training.TrainConfig(steps=args.steps, chunk=args.chunk)
+    try:
+        seeds = tuple(int(s) for s in args.seeds.split(","))
+    except ValueError:
+        seeds = ()
+    if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
+        p.error(f"--seeds must be distinct non-negative integers separated by commas, e.g. 0,1,2; got {args.seeds!r}")
+    try:
+        config = training.TrainConfig(steps=args.steps, chunk=args.chunk)
+    except ValueError as e:
+        p.error(str(e).replace("TrainConfig.", "--"))
+    distributed.initialize()  # multi-host only; a no-op on one machine
+    if args.devices < 0 or args.devices > jax.device_count():
+        p.error(f"--devices must be in 0..{jax.device_count()} (0 = all), got {args.devices}")
+    mesh = distributed.make_mesh(args.devices or None) if args.devices != 1 else None
+    writer = jax.process_index() == 0
     lib = load_library()
     text_emb = None
     if methods.spec(args.method).condition == "raw":
@@ -45,24 +61,35 @@ def main(argv=None) -> int:
         return dataclasses.replace(states, key=jax.random.key_data(states.key))
 
     initial = None
-    try:
+    try:  # resume only the same run: method, seeds, P, library and optimizer settings must match
         tmpl = to_tree(template())
-        tree, m = checkpoints.restore(run_dir, tmpl, expect={k: meta[k] for k in ("method", "seeds", "num_controls")})
+        tree, m = checkpoints.restore(run_dir, tmpl, expect={k: meta[k] for k in
+                                                             ("method", "seeds", "num_controls", "library_sha256")})
+        fixed = {k: v for k, v in meta["config"].items() if k not in ("steps", "chunk")}
+        stored = {k: m.get("config", {}).get(k) for k in fixed}
+        if stored != fixed:
+            raise ValueError(f"checkpoint {run_dir} was trained with {stored}, this run asks for {fixed}")
+        if int(m["step"]) > args.steps:
+            raise ValueError(f"checkpoint {run_dir} is at step {m['step']}, beyond --steps {args.steps}")
         initial = dataclasses.replace(tree, key=jax.random.wrap_key_data(jnp.asarray(tree.key)))
         print(f"resuming {args.method} from step {int(m['step'])}")
     except FileNotFoundError:
         pass
+    except ValueError as e:
+        raise SystemExit(f"error: cannot resume: {e}\n(delete {run_dir} to start this run afresh)")
 
     def on_chunk(states, done):
-        checkpoints.save(run_dir, to_tree(states), {**meta, "step": done})
+        if writer:
+            checkpoints.save(run_dir, to_tree(states), {**meta, "step": done})
 
     trained = methods.train(args.method, lib, seeds, config, text_emb=text_emb, num_controls=args.num_controls,
-                            initial_states=initial, on_chunk=on_chunk)
+                            initial_states=initial, on_chunk=on_chunk, mesh=mesh)
     final = jax.tree.map(lambda x: x[:1], trained.params) if len(seeds) > 1 else trained.params
-    checkpoints.save(args.out, final, {**meta, "seeds": [seeds[0]], "step": args.steps})
-    import shutil
+    if writer:
+        checkpoints.save(args.out, final, {**meta, "seeds": [seeds[0]], "step": args.steps})
+        import shutil
 
-    shutil.rmtree(run_dir, ignore_errors=True)  # the run finished: its resume state is no longer needed
+        shutil.rmtree(run_dir, ignore_errors=True)  # the run finished: its resume state is no longer needed
     print(f"saved {args.out} (seed {seeds[0]}); final loss {float(trained.losses[0, -100:].mean()):.4f}")
     return 0
 

@@ -156,6 +156,16 @@ def main(argv: list[str] | None = None) -> int:
                          f"(valid intents: {', '.join(INTENTS)})")
         if len(args.text) > MAX_TEXT_CHARS:
             parser.error(f"text is {len(args.text)} characters; at most {MAX_TEXT_CHARS} are accepted")
+        try:
+            args.text.encode("utf-8")
+        except UnicodeEncodeError:  # undecodable bytes on the command line arrive as lone surrogates
+            parser.error("text is not valid UTF-8; give the response as UTF-8 text")
+    if not args.out.strip():
+        parser.error("--out needs a folder name, e.g. --out grounding_out")
+    try:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+    except (OSError, ValueError) as e:  # a file in the way, no permission, a NUL in the name, ...
+        parser.error(f"--out {args.out!r} cannot be used as the output folder ({e})")
     try:
         return run(args)
     except (ValueError, TypeError) as e:

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jgrounding import checkpoints, flows, methods, safety
-from jgrounding.vocabulary import intensity_index, intent_index
+from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "checkpoints" / "tuple_spline_rf"
 MAX_SAMPLES = 4096
@@ -25,37 +25,60 @@ _K_BUCKETS = (1, 8, 32, 128, 512, 4096)
 
 @functools.lru_cache(maxsize=4)
 def load(checkpoint: str | None = None):
-    """(Trained for one seed, meta) from a checkpoint directory (cached)."""
+    """(Trained for one seed, intent embeddings ``(16, 384)``) from a checkpoint directory (cached).
+
+    Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
+    vocabulary, wrong array shapes or non-finite weights (:func:`checkpoints.restore`), and one whose
+    model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
+    """
     from jgrounding import semantics
 
+    if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
+        raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint).__name__}")
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
     meta = checkpoints.read_meta(path)
-    method = meta.get("method")
+    method, num_controls = meta.get("method"), meta.get("num_controls", 4)
     if method not in methods.METHODS:
-        raise ValueError(f"checkpoint {path} names unknown method {method!r}")
-    graphdef, params = methods.init(method, (0,), meta.get("num_controls", 4))
+        raise ValueError(f"checkpoint {path} names unknown method {method!r}; valid: {', '.join(methods.METHODS)}")
+    if isinstance(num_controls, bool) or not isinstance(num_controls, int) or not 2 <= num_controls <= 64:
+        raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
+    graphdef, params = methods.init(method, (0,), num_controls)
     params, meta = checkpoints.restore(path, params)
-    trained = methods.Trained(method, graphdef, params, (0,), meta.get("num_controls", 4))
-    return trained, semantics.intent_embeddings()
+    trained = methods.Trained(method, graphdef, params, (0,), num_controls)
+    intent_emb = semantics.intent_embeddings()
+    _self_test(path, trained, intent_emb)
+    return trained, intent_emb
+
+
+def _self_test(path: Path, trained, intent_emb) -> None:
+    """Sample tuple (0, 0) once with the default sampler (the executable the first ``sample`` reuses)."""
+    fn = methods._generate_fn(trained.method, trained.graphdef, "euler", 50, trained.num_controls)
+    u = np.asarray(fn(trained.params, jnp.asarray(intent_emb[:1]), jnp.zeros((1,), jnp.int32),
+                      jax.random.key(0)[None]))
+    if u.shape != (1, 1, methods.T, 4) or not np.all(np.isfinite(u)):
+        bad = "non-finite values" if u.shape == (1, 1, methods.T, 4) else f"shape {u.shape}"
+        raise ValueError(f"checkpoint {path} failed its load self-test: a sample of "
+                         f"({INTENTS[0]}, {INTENSITIES[0]}) has {bad}; refusing to use it")
 
 
 def _as_key(key):
+    accepted = "a typed key from jax.random.key(seed) or a raw uint32[2] key from jax.random.PRNGKey(seed)"
     if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
         if key.shape != ():
-            raise ValueError(f"key must be a single key, got shape {key.shape}")
+            raise ValueError(f"key must be a single key ({accepted}), got a key array of shape {key.shape}")
         return key
     arr = np.asarray(key) if isinstance(key, (jax.Array, np.ndarray)) else None
     if arr is not None and arr.dtype == np.uint32 and arr.shape == (2,):
         return jax.random.wrap_key_data(jnp.asarray(arr))
-    raise TypeError("key must be a typed key from jax.random.key(seed) or a raw uint32[2] key from "
-                    f"jax.random.PRNGKey(seed); got {type(key).__name__}")
+    got = f"{arr.dtype}{list(arr.shape)} array" if arr is not None else type(key).__name__
+    raise TypeError(f"key must be {accepted}; got {got}")
 
 
-@functools.lru_cache(maxsize=32)
-def _compiled(checkpoint, sampler, steps, k):
+def _compiled(checkpoint, sampler, steps):
     trained, _ = load(checkpoint)
-    fn = methods._generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls)
-    return jax.jit(lambda params, cond, z, key: fn(params, cond, z, key[None])[0])
+    # The cached executable itself (not a jit around it), so the load self-test warms the default one;
+    # it compiles once per K bucket.
+    return methods._generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls)
 
 
 def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str = "euler", steps: int = 50,
@@ -76,8 +99,8 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str = "eule
     key = _as_key(key)
     trained, intent_emb = load(checkpoint)
     k = next(b for b in _K_BUCKETS if b >= num_samples)
-    fn = _compiled(checkpoint, sampler, int(steps), k)
+    fn = _compiled(checkpoint, sampler, int(steps))
     cond = jnp.broadcast_to(jnp.asarray(intent_emb[m]), (k, intent_emb.shape[1]))
-    u = fn(trained.params, cond, jnp.full((k,), z, jnp.int32), key)[:num_samples]
+    u = fn(trained.params, cond, jnp.full((k,), z, jnp.int32), key[None])[0, :num_samples]
     u = safety.emit(u)
     return u[0] if num_samples == 1 else u

@@ -304,6 +304,11 @@ def ground(text: str, *, backend: str = "embedded", **mllm_options) -> Grounding
         raise ValueError("text is empty; give a response such as 'User seems sad; respond calmly'")
     if len(text) > MAX_CHARS:
         text = text[:MAX_CHARS]
+    try:  # the tokenizer (and any server) needs text that encodes as UTF-8
+        text.encode("utf-8")
+    except UnicodeEncodeError as e:
+        raise ValueError(f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
+                         "give a str that encodes as UTF-8") from None
     if backend == "embedded":
         return ground_embedded(text)
     if backend == "mllm":

@@ -30,9 +30,9 @@ NUM_CONTROLS = 4  # P of Table I
 
 
 def _check_sizes(num_steps: int, num_controls: int) -> None:
-    if not isinstance(num_controls, (int, np.integer)) or num_controls < 2:
+    if isinstance(num_controls, bool) or not isinstance(num_controls, (int, np.integer)) or num_controls < 2:
         raise ValueError(f"num_controls (P) must be an integer >= 2, got {num_controls!r}")
-    if not isinstance(num_steps, (int, np.integer)) or num_steps < num_controls:
+    if isinstance(num_steps, bool) or not isinstance(num_steps, (int, np.integer)) or num_steps < num_controls:
         raise ValueError(f"num_steps (T) must be an integer >= num_controls (P={num_controls}), got {num_steps!r}")
 
 
@@ -80,9 +80,21 @@ def _check_finite(x, name: str) -> None:
         raise ValueError(f"{name} contains NaN or Inf")
 
 
+def _as_real_array(x, name: str, shape: str) -> jax.Array:
+    """``jnp.asarray`` for a real numeric (float, integer or bool) array; a clear error otherwise."""
+    try:
+        arr = jnp.asarray(x)
+    except (TypeError, ValueError) as e:
+        raise type(e)(f"{name} must be a real numeric array of shape {shape}, got {type(x).__name__} ({e})") from None
+    if not (jnp.issubdtype(arr.dtype, jnp.floating) or jnp.issubdtype(arr.dtype, jnp.integer) or arr.dtype == bool):
+        raise TypeError(f"{name} must be a real numeric array (float, integer or bool) of shape {shape}, "
+                        f"got dtype {arr.dtype}")
+    return arr
+
+
 def reconstruct(c, num_steps: int = NUM_STEPS) -> jax.Array:
     """Eq. (reconstruction): controls ``(..., N_u, P)`` -> actuation ``(..., T, N_u)``."""
-    c = jnp.asarray(c)
+    c = _as_real_array(c, "controls", "(..., N_u, P)")
     if c.ndim < 2:
         raise ValueError(f"controls must have shape (..., N_u, P), got {c.shape}")
     _check_sizes(num_steps, c.shape[-1])
@@ -93,7 +105,7 @@ def reconstruct(c, num_steps: int = NUM_STEPS) -> jax.Array:
 
 def fit(u, num_controls: int = NUM_CONTROLS) -> jax.Array:
     """Eq. (ci) in closed form: actuation ``(..., T, N_u)`` -> least-squares controls ``(..., N_u, P)``."""
-    u = jnp.asarray(u)
+    u = _as_real_array(u, "actuation", "(..., T, N_u)")
     if u.ndim < 2:
         raise ValueError(f"actuation must have shape (..., T, N_u), got {u.shape}")
     _check_sizes(u.shape[-2], num_controls)

@@ -8,11 +8,15 @@ chunks so an interrupted run resumes and ends with the same parameters as an uni
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
+
+from jgrounding import distributed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -24,6 +28,16 @@ class TrainConfig:
     learning_rate: float = 1e-3
     weight_decay: float = 1e-4
     chunk: int = 1_000  # steps per compiled chunk (progress / checkpoint granularity)
+
+    def __post_init__(self):
+        for name, low in (("steps", 0), ("batch_size", 1), ("chunk", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+                raise ValueError(f"TrainConfig.{name} must be an integer >= {low}, got {value!r}")
+        for name in ("learning_rate", "weight_decay"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
+                raise ValueError(f"TrainConfig.{name} must be a finite number >= 0, got {value!r}")
 
 
 @jax.tree_util.register_dataclass
@@ -58,34 +72,55 @@ def init_state(params, key, config: TrainConfig) -> TrainState:
     return TrainState(params, optimizer(config).init(params), jnp.zeros((), jnp.int32), key)
 
 
-def make_chunk(step, length: int):
-    """``jit(vmap(scan(step)))`` over seeds: ``(state[S]) -> (state[S], losses (S, length))``."""
+def make_chunk(step, length: int, mesh=None):
+    """``jit(vmap(scan(step)))`` over seeds: ``(state[S]) -> (state[S], losses (S, length))``.
+
+    With a ``mesh`` the seed axis of the state and of the losses stays split over its devices.
+    """
 
     def run(state):
         return jax.lax.scan(step, state, None, length=length)
 
-    return jax.jit(jax.vmap(run))
+    if mesh is None:
+        return jax.jit(jax.vmap(run))
+    seeds = distributed.sharding(mesh, distributed.AXIS)
+    return jax.jit(jax.vmap(run), in_shardings=(seeds,), out_shardings=(seeds, seeds))
 
 
 def train(states: TrainState, step, config: TrainConfig, *, desc: str = "train", progress: bool = True,
-          on_chunk: Callable | None = None) -> tuple[TrainState, jax.Array]:
-    """Run ``config.steps`` updates (minus those already done) of vmapped ``states`` in compiled chunks."""
+          on_chunk: Callable | None = None, mesh=None) -> tuple[TrainState, jax.Array]:
+    """Run ``config.steps`` updates (minus those already done) of vmapped ``states`` in compiled chunks.
+
+    ``mesh`` (:func:`jgrounding.distributed.make_mesh`): the seeds are split over its devices, padded
+    to a multiple of the device count with copies of seed 0 that are dropped again; ``on_chunk`` and
+    the caller then receive the full, unpadded states on every process.
+    """
     from tqdm import tqdm
 
-    done = int(jax.device_get(states.step).reshape(-1)[0])
+    done = int(np.asarray(jax.device_get(states.step)).reshape(-1)[0])
+    num_seeds = int(np.shape(states.step)[0])
+    if mesh is not None:
+        states = distributed.shard(distributed.pad_leading(states, mesh.size), mesh)
+
+    def unpadded(tree):
+        return tree if mesh is None else distributed.take_leading(distributed.gather(tree), num_seeds)
+
     losses = []
     chunk_fns = {}
     bar = tqdm(total=config.steps, initial=done, desc=desc, disable=not progress, unit="step", leave=False)
     while done < config.steps:
         n = min(config.chunk, config.steps - done)
         if n not in chunk_fns:
-            chunk_fns[n] = make_chunk(step, n)
+            chunk_fns[n] = make_chunk(step, n, mesh)
         states, loss = chunk_fns[n](states)
         losses.append(loss)
         done += n
         bar.update(n)
         bar.set_postfix(loss=f"{float(loss[:, -50:].mean()):.4f}")
         if on_chunk is not None:
-            on_chunk(states, done)
+            on_chunk(unpadded(states), done)
     bar.close()
-    return states, (jnp.concatenate(losses, axis=1) if losses else jnp.zeros((1, 0)))
+    losses = jnp.concatenate(losses, axis=1) if losses else jnp.zeros((num_seeds, 0))
+    if mesh is None:
+        return states, losses
+    return jax.tree.map(jnp.asarray, unpadded(states)), jnp.asarray(unpadded(losses))
