@@ -21,7 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import checkpoints, library, load_library, methods, metrics, semantics, trunk
+from jgrounding import checkpoints, distributed, library, load_library, methods, metrics, semantics, trunk
 from jgrounding.training import TrainConfig
 
 PAPER = {  # Table II of the paper: success, diversity, time (ms)
@@ -43,6 +43,7 @@ class AblationConfig:
     methods: tuple[str, ...] = methods.METHODS
     out: str = "results"
     runs: str = "runs/ablation"
+    devices: int = 1  # > 1 or 0 (= all): seeds (training) and samples (evaluation) split over a device mesh
 
 
 QUICK = dict(seeds=(0, 1), steps=300, k_div=8, physics_samples=2)
@@ -53,12 +54,13 @@ def mean_std(x) -> tuple[float, float]:
     return float(x.mean()), float(x.std())
 
 
-def evaluate(method, trained, lib, cfg, cond_eval, key):
+def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     ho = lib.heldout
     k_gen, k_lat = jax.random.split(key)
-    methods.generate(trained, cond_eval, ho.intensity, k_gen, num_samples=cfg.k_div, steps=cfg.euler_steps)  # compile
+    gen = dict(num_samples=cfg.k_div, steps=cfg.euler_steps, mesh=mesh)
+    methods.generate(trained, cond_eval, ho.intensity, k_gen, **gen)  # compile
     t0 = time.perf_counter()
-    u = methods.generate(trained, cond_eval, ho.intensity, k_gen, num_samples=cfg.k_div, steps=cfg.euler_steps)
+    u = methods.generate(trained, cond_eval, ho.intensity, k_gen, **gen)
     batch_s = time.perf_counter() - t0
     r = np.asarray(metrics.rms(u, ho.u[None, :, None]))  # (S, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)  # (S,)
@@ -91,13 +93,14 @@ def run(cfg: AblationConfig) -> dict:
     train_texts = semantics.embed([t for row in lib.train.texts for t in row]).reshape(len(lib.train), -1, 384)
     heldout_text = semantics.embed([row[0] for row in lib.heldout.texts])
     train_cfg = TrainConfig(steps=cfg.steps, chunk=min(1000, cfg.steps))
+    mesh = None if cfg.devices == 1 else distributed.make_mesh(cfg.devices or None)
     rows, per_sample, samples = {}, {}, {}
     key = jax.random.key(2026)
     for method in cfg.methods:
         raw = methods.spec(method).condition == "raw"
         t0 = time.perf_counter()
         trained = methods.train(method, lib, cfg.seeds, train_cfg, intent_emb=intent_emb,
-                                text_emb=train_texts if raw else None)
+                                text_emb=train_texts if raw else None, mesh=mesh)
         train_s = time.perf_counter() - t0
         checkpoints.save(Path(cfg.runs) / method, trained.params,
                          {"method": method, "seeds": list(cfg.seeds), "num_controls": 4,
@@ -105,7 +108,7 @@ def run(cfg: AblationConfig) -> dict:
                           "step": cfg.steps})
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
         u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
-                                                      jax.random.fold_in(key, len(rows)))
+                                                      jax.random.fold_in(key, len(rows)), mesh)
         phys = physics(u[0], lib, cfg)
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
@@ -253,6 +256,7 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int)
     p.add_argument("--out")
     p.add_argument("--methods", help=f"comma-separated subset of {','.join(methods.METHODS)}")
+    p.add_argument("--devices", type=int, help="devices of the mesh (0 = all; default 1 = no mesh); see docs/distributed.md")
     args = p.parse_args(argv)
     cfg = AblationConfig(**QUICK) if args.quick else AblationConfig()
     if args.seeds:
@@ -266,6 +270,9 @@ def main(argv=None) -> int:
         for m in chosen:
             methods.spec(m)
         cfg = dataclasses.replace(cfg, methods=chosen)
+    if args.devices is not None:
+        distributed.initialize()
+        cfg = dataclasses.replace(cfg, devices=args.devices)
     t0 = time.perf_counter()
     res = run(cfg)
     write(res, cfg.out)

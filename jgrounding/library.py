@@ -181,6 +181,8 @@ def _split(arrays, mask) -> Split:
 
 def load_library(path: str | Path | None = None) -> Library:
     """Load the demonstration library (``assets/library.npz`` by default) -> :class:`Library`."""
+    if path is not None and not isinstance(path, (str, Path)):
+        raise TypeError(f"path must be a str or pathlib.Path to a library .npz, got {type(path).__name__}")
     path = Path(path or DEFAULT_PATH)
     if not path.exists():
         raise FileNotFoundError(f"library file {path} not found; regenerate it with `{REGENERATE}`")

@@ -73,7 +73,10 @@ def load_model(path: str | None = None, contact: bool = True) -> mujoco.MjModel:
 
 def validate_actuation(u) -> np.ndarray:
     """``(T, 4)`` or ``(B, T, 4)`` finite commands in [0, 1] -> float64 ``(B, T, 4)``."""
-    u = np.asarray(u, dtype=np.float64)
+    arr = np.asarray(u)
+    if arr.dtype.kind not in "biuf":  # strings, objects, complex: not a command
+        raise TypeError(f"actuation must be a real-valued array (T, 4) or (B, T, 4), got dtype {arr.dtype}")
+    u = arr.astype(np.float64)
     if u.ndim == 2:
         u = u[None]
     if u.ndim != 3 or u.shape[-1] != NUM_CHANNELS or u.shape[1] < 1:

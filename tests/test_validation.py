@@ -123,3 +123,16 @@ def test_load_library_names_a_missing_file(tmp_path):
     with pytest.raises(FileNotFoundError, match="build_library"):
         jg.load_library(tmp_path / "none.npz")
     assert sampling.MAX_SAMPLES >= 30  # K_div = 30 fits in one public call
+
+
+@pytest.mark.parametrize("bad", [np.full((150, 4), "a"), np.zeros((150, 4), complex), [[object()] * 4] * 150])
+def test_rollout_refuses_non_real_commands(bad):
+    from jgrounding import trunk
+
+    with pytest.raises(TypeError, match="real-valued"):
+        trunk.rollout(bad)
+
+
+def test_load_library_refuses_a_non_path():
+    with pytest.raises(TypeError, match="str or pathlib.Path"):
+        jg.load_library(5)
