@@ -13,6 +13,7 @@ import numpy as np
 SAMPLERS = ("euler", "midpoint", "rk4")
 DDPM_SAMPLERS = ("ancestral", "ddim")
 DDPM_STEPS = 50  # diffusion steps; the ancestral sampler uses all of them (Table I: S = 50)
+DATA_BOUND = 1.0  # targets are normalized to [-1, 1] (methods._encode); DDIM clips its x0 estimate to it
 
 
 def rf_loss(velocity, c, key):
@@ -122,7 +123,10 @@ def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "a
         i = idx[k]
         prev = jnp.where(k + 1 < n, abar[idx[jnp.minimum(k + 1, n - 1)]], 1.0)
         eps = noise_pred(x, as_input(x, feats[k, 0]))
-        x0 = (x - jnp.sqrt(1 - abar[i]) * eps) / jnp.sqrt(abar[i])
+        # The predicted clean sample is clipped to the data range, and the noise made consistent with it:
+        # at the first, noisiest step abar ~ 1e-5, and dividing by its root amplifies any error in eps.
+        x0 = jnp.clip((x - jnp.sqrt(1 - abar[i]) * eps) / jnp.sqrt(abar[i]), -DATA_BOUND, DATA_BOUND)
+        eps = (x - jnp.sqrt(abar[i]) * x0) / jnp.sqrt(1 - abar[i])
         return jnp.sqrt(prev) * x0 + jnp.sqrt(1 - prev) * eps
 
     return jax.lax.fori_loop(0, n, body, x_T)
