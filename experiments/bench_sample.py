@@ -34,17 +34,8 @@ def _trained(method, lib):
     return methods.train(method, lib, (0,), TrainConfig(steps=2000), progress=False), "trained 2k steps here"
 
 
-def latency(trained, cond, intensity, steps, sampler="euler", reps=200):
-    fn = methods.latency_fn(trained, 0, steps=steps, sampler=sampler)
-    key = jax.random.key(0)
-    jax.block_until_ready(fn(cond[0], intensity[0], key))
-    times = []
-    for i in range(reps):
-        j = i % len(cond)
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(cond[j], intensity[j], jax.random.fold_in(key, i)))
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))
+def latency(trained, cond, intensity, steps, sampler="euler"):
+    return methods.latency_ms(trained, cond, intensity, jax.random.key(0), sampler=sampler, steps=steps)
 
 
 def main(argv=None) -> int:

@@ -13,7 +13,6 @@ import argparse
 import dataclasses
 import json
 import sys
-import time
 from pathlib import Path
 
 import jax
@@ -80,12 +79,7 @@ def _eval(trained, lib, cond, key, k_div, steps, sampler="euler"):
     u = methods.generate(trained, cond, lib.heldout.intensity, key, num_samples=k_div, steps=steps, sampler=sampler)
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
-    lat = methods.latency_fn(trained, 0, steps=steps, sampler=sampler)
-    jax.block_until_ready(lat(cond[0], lib.heldout.intensity[0], key))
-    t0 = time.perf_counter()
-    for j in range(len(lib.heldout)):
-        jax.block_until_ready(lat(cond[j], lib.heldout.intensity[j], jax.random.fold_in(key, j)))
-    ms = 1e3 * (time.perf_counter() - t0) / len(lib.heldout)
+    ms = methods.latency_ms(trained, cond, lib.heldout.intensity, key, steps=steps, sampler=sampler)
     return mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), mean_std(div), ms
 
 
