@@ -137,7 +137,8 @@ def main(argv=None) -> int:
         say(f"| {b} | {native:,.0f} | {mjx:,.0f} | {mjx / native:.3f}x | {1e3 * gap:.2f} mm |")
     say("")
     say(f"{os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
-        "core; MJX = jax on CPU, float32. Commands: library trajectories, repeated to fill B.")
+        f"core; MJX = jax on CPU, float32, every batch run as padded chunks of {args.chunk} (so B = 64 does a chunk's "
+        "work: one compiled program serves every B). Commands: library trajectories, repeated to fill B.")
     write_atomic(ROOT / "results" / "bench_trunk.md", "\n".join(lines) + "\n")
     return 0
 
