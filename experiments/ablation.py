@@ -69,11 +69,11 @@ def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     return u, r, div, cov, lat_ms, u.shape[0] * u.shape[1] * u.shape[2] / batch_s
 
 
-def physics(u_seed0, lib, cfg):
-    """Shape RMS vs the held-out reference's simulated backbone, feasibility and shape success."""
+def physics(u_seed0, lib, cfg, ref):
+    """Shape RMS vs the held-out references' simulated backbones ``ref (64, T, 11, 3)``, feasibility and
+    shape success."""
     ho = lib.heldout
     k = min(cfg.physics_samples, u_seed0.shape[1])
-    ref = trunk.rollout(ho.u).backbone  # (64, T, 11, 3)
     sim = trunk.rollout(u_seed0[:, :k].reshape(-1, 150, 4))
     bb = sim.backbone.reshape(len(ho), k, *ref.shape[1:])
     dist = np.linalg.norm(bb - ref[:, None], axis=-1).mean(axis=(-1, -2))  # (64, k) metres
@@ -89,6 +89,7 @@ def run(cfg: AblationConfig) -> dict:
     train_cfg = TrainConfig(steps=cfg.steps, chunk=min(1000, cfg.steps))
     mesh = None if cfg.devices == 1 else distributed.make_mesh(cfg.devices or None)
     rows, per_sample, samples = {}, {}, {}
+    ref_backbone = trunk.rollout(lib.heldout.u).backbone  # the held-out references, simulated once
     key = jax.random.key(2026)
     for method in cfg.methods:
         raw = methods.spec(method).condition == "raw"
@@ -103,7 +104,7 @@ def run(cfg: AblationConfig) -> dict:
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
         u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
                                                       jax.random.fold_in(key, len(rows)), mesh)
-        phys = physics(u[0], lib, cfg)
+        phys = physics(u[0], lib, cfg, ref_backbone)
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
         rows[method] = {
@@ -116,21 +117,15 @@ def run(cfg: AblationConfig) -> dict:
         print(f"{methods.DISPLAY[method]:24s} success {rows[method]['success'][0]:.3f} ± {rows[method]['success'][1]:.3f}"
               f"  div {rows[method]['diversity'][0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s", flush=True)
     refs = metrics.reference_baselines(lib, seed=0, draws=max(len(cfg.seeds), 5))
-    ref_phys = {}
+    one = dataclasses.replace(cfg, physics_samples=1)
     rng = np.random.default_rng(0)
-    for name in ("oracle", "wrong_intent_any_intensity"):
-        pick = []
-        for j in range(len(lib.heldout)):
-            same = (lib.train.intent == lib.heldout.intent[j])
-            pool = np.flatnonzero(same & (lib.train.intensity == lib.heldout.intensity[j])) if name == "oracle" \
-                else np.flatnonzero(~same)
-            pick.append(lib.train.u[rng.choice(pool)])
-        ref_phys[name] = physics(np.stack(pick)[:, None], lib, dataclasses.replace(cfg, physics_samples=1))
+    ref_phys = {name: physics(metrics.replay(lib, name, rng)[:, None], lib, one, ref_backbone)
+                for name in ("oracle", "wrong_intent_any_intensity")}
     mean_u = metrics.tuple_mean(lib)
     r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
     refs["tuple_mean"] = {"success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
                           "rms": (float(r_mean.mean()), 0.0)}
-    ref_phys["tuple_mean"] = physics(mean_u[:, None], lib, dataclasses.replace(cfg, physics_samples=1))
+    ref_phys["tuple_mean"] = physics(mean_u[:, None], lib, one, ref_backbone)
     return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
             "per_sample_rms": per_sample, "samples": samples, "date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "

@@ -18,7 +18,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import checkpoints, load_library, methods, metrics, semantics, splines
+from jgrounding import load_library, methods, metrics, semantics, splines
 from jgrounding.export import write_atomic
 from jgrounding.plotting import plt, save
 from jgrounding.training import TrainConfig
@@ -28,11 +28,7 @@ RESULTS = Path("results")
 
 
 def load_trained(method: str, runs: Path = Path("runs/ablation")) -> methods.Trained:
-    path = runs / method
-    meta = checkpoints.read_meta(path)
-    graphdef, params = methods.init(method, tuple(meta["seeds"]), meta.get("num_controls", 4))
-    params, meta = checkpoints.restore(path, params, expect={"method": method})
-    return methods.Trained(method, graphdef, params, tuple(meta["seeds"]), meta.get("num_controls", 4))
+    return methods.restore(runs / method, method)
 
 
 LOW_TAUS = (0.05, 0.10, 0.15, 0.20)  # beyond the paper's range: where do the methods separate?

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import distributed, flows, safety, splines, training
+from jgrounding import checkpoints, distributed, flows, safety, splines, training
 from jgrounding.models import CNNRegressor, VelocityMLP
 
 METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm", "tuple_spline_rf")
@@ -142,6 +142,23 @@ def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainCon
     states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
                                     on_chunk=on_chunk, mesh=mesh)
     return Trained(method, graphdef, states.params, tuple(int(s) for s in seeds), num_controls, losses)
+
+
+def restore(path, method: str | None = None) -> Trained:
+    """A :class:`Trained` (every seed it holds) from a checkpoint directory written by the ablation or
+    ``experiments.train``; ``method`` (optional) must match. ``ValueError`` naming the directory for an
+    unknown method or P, and whatever :func:`checkpoints.restore` refuses (vocabulary, shapes, NaN, digest)."""
+    meta = checkpoints.read_meta(path)
+    name, num_controls, seeds = meta.get("method"), meta.get("num_controls", 4), meta.get("seeds", [0])
+    if name not in METHODS:
+        raise ValueError(f"checkpoint {path} names unknown method {name!r}; valid: {', '.join(METHODS)}")
+    if method is not None and name != method:
+        raise ValueError(f"checkpoint {path}: method is {name!r}, expected {method!r}")
+    if isinstance(num_controls, bool) or not isinstance(num_controls, int) or not 2 <= num_controls <= 64:
+        raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
+    graphdef, params = init(name, tuple(seeds), num_controls)
+    params, _ = checkpoints.restore(path, params)
+    return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls)
 
 
 def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",

@@ -60,16 +60,30 @@ def tuple_mean(library) -> np.ndarray:
     The best a deterministic regressor can do under a squared loss, as a reference: with a tight
     library it is closer to the held-out target in RMS than any single replayed realization.
     """
+    oracle = _pools(library)["oracle"]
+    return np.stack([library.train.u[oracle(j)].mean(0) for j in range(len(library.heldout))])
+
+
+def _pools(library) -> dict:
+    """Reference name -> ``pool(j)``: the training records a replay for held-out record j draws from."""
     tr, ho = library.train, library.heldout
-    return np.stack([tr.u[(tr.intent == m) & (tr.intensity == z)].mean(0) for m, z in zip(ho.intent, ho.intensity)])
+    return {
+        "oracle": lambda j: np.flatnonzero((tr.intent == ho.intent[j]) & (tr.intensity == ho.intensity[j])),
+        "wrong_intent_same_intensity": lambda j: np.flatnonzero((tr.intent != ho.intent[j])
+                                                                & (tr.intensity == ho.intensity[j])),
+        "wrong_intent_any_intensity": lambda j: np.flatnonzero(tr.intent != ho.intent[j]),
+        "adjacent_intensity": lambda j: np.flatnonzero((tr.intent == ho.intent[j])
+                                                       & (np.abs(tr.intensity - ho.intensity[j]) == 1)),
+    }
 
 
-def _replay(rng, library, pick_pool) -> np.ndarray:
-    """For each held-out record, the u of one training record drawn from ``pick_pool(j)``."""
+def replay(library, name: str, rng: np.random.Generator) -> np.ndarray:
+    """``(64, T, N_u)``: for each held-out record, the u of one training record of reference ``name``
+    (a key of :func:`reference_baselines`' result), drawn with ``rng``."""
+    pool = _pools(library)[name]
     out = np.empty_like(library.heldout.u)
     for j in range(len(library.heldout)):
-        pool = pick_pool(j)
-        out[j] = library.train.u[rng.choice(pool)]
+        out[j] = library.train.u[rng.choice(pool(j))]
     return out
 
 
@@ -80,19 +94,11 @@ def reference_baselines(library, seed: int = 0, draws: int = 20, taus=TAUS) -> d
     ``wrong_intent_any_intensity``: one of a different intent. ``adjacent_intensity``: the same intent
     one intensity level away. Returns ``{name: {"success": {tau: (mean, std)}, "rms": (mean, std)}}``.
     """
-    tr, ho = library.train, library.heldout
-    pools = {
-        "oracle": lambda j: np.flatnonzero((tr.intent == ho.intent[j]) & (tr.intensity == ho.intensity[j])),
-        "wrong_intent_same_intensity": lambda j: np.flatnonzero((tr.intent != ho.intent[j])
-                                                                & (tr.intensity == ho.intensity[j])),
-        "wrong_intent_any_intensity": lambda j: np.flatnonzero(tr.intent != ho.intent[j]),
-        "adjacent_intensity": lambda j: np.flatnonzero((tr.intent == ho.intent[j])
-                                                       & (np.abs(tr.intensity - ho.intensity[j]) == 1)),
-    }
+    ho = library.heldout
     rng = np.random.default_rng(seed)
     out = {}
-    for name, pool in pools.items():
-        r = np.stack([np.asarray(rms(_replay(rng, library, pool), ho.u)) for _ in range(draws)])  # (draws, 64)
+    for name in _pools(library):
+        r = np.stack([np.asarray(rms(replay(library, name, rng), ho.u)) for _ in range(draws)])  # (draws, 64)
         out[name] = {
             "success": {float(t): (float((r <= t).mean(1).mean()), float((r <= t).mean(1).std())) for t in taus},
             "rms": (float(r.mean()), float(r.mean(1).std())),

@@ -8,6 +8,7 @@ never NaN. Deterministic for a key.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -15,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jgrounding import checkpoints, flows, methods, safety
+from jgrounding import flows, methods, safety
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "checkpoints" / "tuple_spline_rf"
@@ -28,7 +29,7 @@ def load(checkpoint: str | None = None):
     """(Trained for one seed, intent embeddings ``(16, 384)``) from a checkpoint directory (cached).
 
     Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
-    vocabulary, wrong array shapes or non-finite weights (:func:`checkpoints.restore`), and one whose
+    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.methods.restore`), and one whose
     model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
     """
     from jgrounding import semantics
@@ -36,15 +37,10 @@ def load(checkpoint: str | None = None):
     if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
         raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint).__name__}")
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
-    meta = checkpoints.read_meta(path)
-    method, num_controls = meta.get("method"), meta.get("num_controls", 4)
-    if method not in methods.METHODS:
-        raise ValueError(f"checkpoint {path} names unknown method {method!r}; valid: {', '.join(methods.METHODS)}")
-    if isinstance(num_controls, bool) or not isinstance(num_controls, int) or not 2 <= num_controls <= 64:
-        raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
-    graphdef, params = methods.init(method, (0,), num_controls)
-    params, meta = checkpoints.restore(path, params)
-    trained = methods.Trained(method, graphdef, params, (0,), num_controls)
+    trained = methods.restore(path)
+    if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
+        trained = dataclasses.replace(trained, params=jax.tree.map(lambda x: x[:1], trained.params),
+                                      seeds=trained.seeds[:1])
     intent_emb = semantics.intent_embeddings()
     _self_test(path, trained, intent_emb)
     return trained, intent_emb

@@ -1,5 +1,7 @@
 """The two camera views show what the docs say they show: in the side view the user is on the right, in the
 rear view the robot's left is on the left; several views tile side by side; the fallback draws them too."""
+import ctypes.util
+
 import numpy as np
 import pytest
 
@@ -12,11 +14,15 @@ def held(level, steps: int = 60) -> np.ndarray:
     return ((0.5 - 0.5 * np.cos(np.pi * s))[:, None] * np.asarray(level, float)[None]).astype(np.float32)
 
 
+# The Makefile installs OSMesa (scripts/install_system.sh); only where that optional step could not run
+# is there no library to render with, and the views are then checked through the fallback test below.
+# With the library present, a renderer that fails is a failure, not a skip.
+_HAS_GL = any(ctypes.util.find_library(name) for name in ("OSMesa", "EGL"))
+needs_gl = pytest.mark.skipif(not _HAS_GL, reason="no OSMesa/EGL library: MuJoCo cannot render here")
+
+
 def _last_frame(u, view):
-    try:
-        (img,), used = render.frames(u, [len(u) - 1], view, backend="mujoco")
-    except Exception as e:  # no GL library on this machine: the fallback is tested below
-        pytest.skip(f"MuJoCo renderer unavailable: {e}")
+    (img,), used = render.frames(u, [len(u) - 1], view, backend="mujoco")
     return img.astype(int)
 
 
@@ -28,6 +34,7 @@ def _moved_column(u, view) -> float:
     return float(np.nonzero(changed)[1].mean())
 
 
+@needs_gl
 def test_side_view_puts_the_user_on_the_right():
     assert trunk.rollout(held([0.6, 0, 0, 0])).tip[0, -1, 0] > 0.1  # tendon 0 bends toward the user (+x)
     toward = _moved_column(held([0.6, 0, 0, 0]), render.SIDE_VIEW)
@@ -35,6 +42,7 @@ def test_side_view_puts_the_user_on_the_right():
     assert away < toward
 
 
+@needs_gl
 def test_rear_view_puts_the_robots_left_on_the_left():
     left = _moved_column(held([0, 0.6, 0, 0]), render.REAR_VIEW)
     right = _moved_column(held([0, 0, 0, 0.6]), render.REAR_VIEW)
