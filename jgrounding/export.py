@@ -66,7 +66,7 @@ def command_stream_csv(u, *, control_dt: float, meta: dict | None = None) -> str
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["step", "time_s"] + [f"tendon_{j}" for j in range(u.shape[1])])
     for t, row in enumerate(u):
-        w.writerow([t, f"{t * control_dt:.4f}"] + [f"{v:.6f}" for v in row])
+        w.writerow([t, f"{t * control_dt:.6f}"] + [f"{v:.6f}" for v in row])
     return buf.getvalue()
 
 

@@ -208,3 +208,9 @@ def load_library(path: str | Path | None = None) -> Library:
         raise ValueError(f"library {path} lacks arrays {sorted(missing)}; regenerate with `{REGENERATE}`")
     held = arrays["heldout"].astype(bool)
     return Library(train=_split(arrays, ~held), heldout=_split(arrays, held), meta=card, path=str(path))
+
+
+if __name__ == "__main__":  # python -m jgrounding.library import DIR --out my_library.npz
+    from jgrounding import importer
+
+    raise SystemExit(importer.main())

@@ -82,7 +82,8 @@ def _index(value, names: tuple[str, ...], kind: str) -> int:
         key = _normalise(value)
         if key in names:
             return names.index(key)
-        raise ValueError(f"unknown {kind} {value!r}; valid {kind}s: {', '.join(names)}")
+        plural = "intensities" if kind == "intensity" else f"{kind}s"
+        raise ValueError(f"unknown {kind} {value!r}; valid {plural}: {', '.join(names)}")
     raise ValueError(f"{kind} must be a name (str) or an index (int), got {type(value).__name__}; "
                      f"valid: {', '.join(names)}")
 
