@@ -2,6 +2,11 @@
 
     python -m experiments.train --method tuple_spline_rf --steps 10000 --seeds 0 --out assets/checkpoints/tuple_spline_rf
 
+``--library my_library.npz`` trains on another library, e.g. one imported from recordings
+(``python -m jgrounding.library import DIR --out my_library.npz``; docs/own_data.md); the number of
+tendons N_u comes from it, and the checkpoint records the library's path, sha256 and tuples, so
+``jg.sample(..., checkpoint=OUT)`` refuses a changed library or a tuple it never saw.
+
 A run killed at any point resumes from its last chunk checkpoint (``--out``) and ends with the same
 parameters as an uninterrupted run. ``--devices N`` (0 = all) splits the seeds over a device mesh; a
 multi-host job sets ``JAX_COORDINATOR_ADDRESS/JAX_NUM_PROCESSES/JAX_PROCESS_ID`` (docs/distributed.md)
@@ -11,11 +16,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 
 from jgrounding import checkpoints, distributed, library, load_library, methods, semantics, training
+from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 
 def main(argv=None) -> int:
@@ -27,6 +34,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", required=True, help="checkpoint directory (resumes if it holds a partial run)")
     p.add_argument("--num-controls", type=int, default=4)
     p.add_argument("--devices", type=int, default=1, help="split the seeds over this many devices (0 = all)")
+    p.add_argument("--library", help="library .npz to train on (default: the shipped assets/library.npz)")
     args = p.parse_args(argv)
     try:
         seeds = tuple(int(s) for s in args.seeds.split(","))
@@ -43,17 +51,25 @@ def main(argv=None) -> int:
         p.error(f"--devices must be in 0..{jax.device_count()} (0 = all), got {args.devices}")
     mesh = distributed.make_mesh(args.devices or None) if args.devices != 1 else None
     writer = jax.process_index() == 0
-    lib = load_library()
+    try:
+        lib = load_library(args.library)
+    except (OSError, ValueError) as e:
+        p.error(f"--library: {e}")
+    num_tendons = int(lib.train.u.shape[-1])
     text_emb = None
     if methods.spec(args.method).condition == "raw":
         texts = [t for row in lib.train.texts for t in row]
         text_emb = semantics.embed(texts).reshape(len(lib.train), -1, 384)
+    tuples = sorted({(int(m), int(z)) for m, z in zip(lib.train.intent, lib.train.intensity)})
     meta = {"method": args.method, "seeds": list(seeds), "num_controls": args.num_controls,
-            "config": dataclasses.asdict(config), "library_sha256": library.file_hash()}
+            "config": dataclasses.asdict(config), "library_sha256": library.file_hash(lib.path)}
+    if args.library:  # the shipped library's checkpoints keep their old metadata
+        meta.update(library_path=str(Path(lib.path).resolve()), num_tendons=num_tendons,
+                    tuples=[f"{INTENTS[m]}/{INTENSITIES[z]}" for m, z in tuples])
     run_dir = args.out + ".run"
 
     def template():
-        graphdef, params = methods.init(args.method, seeds, args.num_controls)
+        graphdef, params = methods.init(args.method, seeds, args.num_controls, num_tendons)
         keys = jnp.stack([jax.random.fold_in(jax.random.key(s), 1) for s in seeds])
         return jax.vmap(lambda pp, k: training.init_state(pp, k, config))(params, keys)
 

@@ -46,15 +46,16 @@ def spec(method: str) -> MethodSpec:
     return MethodSpec(c, r, g)
 
 
-def build_model(method: str, num_controls: int, key) -> nnx.Module:
+def build_model(method: str, num_controls: int, key, num_tendons: int = 4) -> nnx.Module:
+    """The network of ``method`` for ``num_tendons`` (N_u, from the library) and P = ``num_controls``."""
     s = spec(method)
     rngs = nnx.Rngs(key)
     tuple_cond = s.condition == "tuple"
     if s.generator == "cnn":
         if s.representation == "dense":  # 32 channels over 150 steps: same budget order as the MLPs
-            return CNNRegressor(T, tuple_cond, channels=32, rngs=rngs)
-        return CNNRegressor(num_controls, tuple_cond, rngs=rngs)
-    dim = 4 * (num_controls if s.representation == "spline" else T)
+            return CNNRegressor(T, tuple_cond, channels=32, num_tendons=num_tendons, rngs=rngs)
+        return CNNRegressor(num_controls, tuple_cond, num_tendons=num_tendons, rngs=rngs)
+    dim = num_tendons * (num_controls if s.representation == "spline" else T)
     return VelocityMLP(dim, tuple_cond, rngs=rngs)
 
 
@@ -68,6 +69,7 @@ class Trained:
     seeds: tuple[int, ...]
     num_controls: int
     losses: Any = None
+    num_tendons: int = 4  # N_u of the library it was trained on
 
 
 def _encode(y):  # controls / actuation in ~[0, 1] -> [-1, 1]
@@ -115,11 +117,11 @@ def _loss_fn(method: str, graphdef, data):
     return loss
 
 
-def init(method: str, seeds, num_controls: int = 4):
+def init(method: str, seeds, num_controls: int = 4, num_tendons: int = 4):
     """(graphdef, params stacked over seeds)."""
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
-    graphdef, _ = nnx.split(build_model(method, num_controls, keys[0]))
-    params = jax.vmap(lambda k: nnx.split(build_model(method, num_controls, k))[1])(keys)
+    graphdef, _ = nnx.split(build_model(method, num_controls, keys[0], num_tendons))
+    params = jax.vmap(lambda k: nnx.split(build_model(method, num_controls, k, num_tendons))[1])(keys)
     return graphdef, params
 
 
@@ -134,14 +136,15 @@ def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainCon
 
     intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb
     data = training_data(method, library.train, intent_emb, text_emb, num_controls)
-    graphdef, params = init(method, seeds, num_controls)
+    num_tendons = int(library.train.u.shape[-1])  # N_u from the data
+    graphdef, params = init(method, seeds, num_controls, num_tendons)
     step = training.make_step(_loss_fn(method, graphdef, data), int(data["target"].shape[0]), config)
     if initial_states is None:
         keys = jnp.stack([jax.random.fold_in(jax.random.key(int(s)), 1) for s in seeds])
         initial_states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
     states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
                                     on_chunk=on_chunk, mesh=mesh)
-    return Trained(method, graphdef, states.params, tuple(int(s) for s in seeds), num_controls, losses)
+    return Trained(method, graphdef, states.params, tuple(int(s) for s in seeds), num_controls, losses, num_tendons)
 
 
 def restore(path, method: str | None = None) -> Trained:
@@ -150,20 +153,23 @@ def restore(path, method: str | None = None) -> Trained:
     unknown method or P, and whatever :func:`checkpoints.restore` refuses (vocabulary, shapes, NaN, digest)."""
     meta = checkpoints.read_meta(path)
     name, num_controls, seeds = meta.get("method"), meta.get("num_controls", 4), meta.get("seeds", [0])
+    num_tendons = meta.get("num_tendons", 4)
     if name not in METHODS:
         raise ValueError(f"checkpoint {path} names unknown method {name!r}; valid: {', '.join(METHODS)}")
     if method is not None and name != method:
         raise ValueError(f"checkpoint {path}: method is {name!r}, expected {method!r}")
     if isinstance(num_controls, bool) or not isinstance(num_controls, int) or not 2 <= num_controls <= 64:
         raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
-    graphdef, params = init(name, tuple(seeds), num_controls)
+    if isinstance(num_tendons, bool) or not isinstance(num_tendons, int) or not 1 <= num_tendons <= 64:
+        raise ValueError(f"checkpoint {path} has num_tendons {num_tendons!r}, expected an integer in 1..64")
+    graphdef, params = init(name, tuple(seeds), num_controls, num_tendons)
     params, _ = checkpoints.restore(path, params)
-    return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls)
+    return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons)
 
 
 def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
-               steps: int = 50, num_controls: int = 4):
-    """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, 4)``."""
+               steps: int = 50, num_controls: int = 4, num_tendons: int = 4):
+    """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, N_u)``."""
     s = spec(method)
     model = nnx.merge(graphdef, params)
     b = cond.shape[0]
@@ -171,7 +177,7 @@ def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: 
         y = _decode(model(cond, intensity))  # (B, L, 4)
         u = splines.reconstruct(jnp.swapaxes(y, -1, -2)) if s.representation == "spline" else y
         return safety.make_safe(u)
-    dim = 4 * (num_controls if s.representation == "spline" else T)
+    dim = num_tendons * (num_controls if s.representation == "spline" else T)
     eps = jax.random.normal(key, (b, dim))
     # What does not change across flow steps is computed once, before the sampler's loop: the
     # condition's share of the first layer, and the time embedding's share for every step.
@@ -184,7 +190,8 @@ def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: 
         x = flows.ddpm_sample(net, eps, k2, sampler="ancestral" if sampler == "euler" else sampler,
                               sample_steps=steps, embed_time=model.time_context)
     y = _decode(x)
-    u = splines.reconstruct(y.reshape(b, 4, num_controls)) if s.representation == "spline" else y.reshape(b, T, 4)
+    u = splines.reconstruct(y.reshape(b, num_tendons, num_controls)) if s.representation == "spline" \
+        else y.reshape(b, T, num_tendons)
     return safety.make_safe(u)
 
 
@@ -199,7 +206,8 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
     n = cond.shape[0]
     cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), num_samples, axis=0)
     inten_k = jnp.repeat(jnp.asarray(intensity, jnp.int32), num_samples, axis=0)
-    fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh)
+    fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh,
+                      trained.num_tendons)
     keys = jax.random.split(key, len(trained.seeds))
     params = trained.params
     if mesh is not None:
@@ -215,19 +223,19 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
             (c, z), sub = distributed.shard((c, z), mesh), distributed.replicate(sub, mesh)
         outs.append(distributed.gather(fn(params, c, z, sub))[:, : batch - pad])
     u = np.concatenate(outs, axis=1)
-    return u.reshape(len(trained.seeds), n, num_samples, T, 4)
+    return u.reshape(len(trained.seeds), n, num_samples, T, trained.num_tendons)
 
 
 _GEN_CACHE: dict = {}
 
 
-def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None):
+def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_tendons: int = 4):
     """``jit(vmap over seeds(sample_one))``; with a mesh the batch axis is split over its devices."""
-    key = (method, id(graphdef), sampler, steps, num_controls, mesh)
+    key = (method, id(graphdef), sampler, steps, num_controls, mesh, num_tendons)
     if key not in _GEN_CACHE:
         def one(params, cond, inten, k):
             return sample_one(method, graphdef, params, cond, inten, k, sampler=sampler, steps=steps,
-                              num_controls=num_controls)
+                              num_controls=num_controls, num_tendons=num_tendons)
 
         fn = jax.vmap(one, in_axes=(0, None, None, 0))
         if mesh is None:
@@ -246,7 +254,8 @@ def latency_fn(trained: Trained, seed_index: int = 0, *, sampler: str = "euler",
     @jax.jit
     def fn(cond, intensity, key):
         return sample_one(trained.method, trained.graphdef, params, cond[None], intensity[None], key,
-                          sampler=sampler, steps=steps, num_controls=trained.num_controls)[0]
+                          sampler=sampler, steps=steps, num_controls=trained.num_controls,
+                          num_tendons=trained.num_tendons)[0]
 
     return fn
 

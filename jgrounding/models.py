@@ -102,9 +102,10 @@ class Conv1D(nnx.Module):
 
 
 class CNNRegressor(nnx.Module):
-    """Deterministic 1-D CNN: condition -> (length, 4) trajectory (dense, T=150) or controls (P)."""
+    """Deterministic 1-D CNN: condition -> (length, N_u) trajectory (dense, T=150) or controls (P)."""
 
-    def __init__(self, length: int, use_intensity: bool = True, channels: int = 64, *, rngs: nnx.Rngs):
+    def __init__(self, length: int, use_intensity: bool = True, channels: int = 64, num_tendons: int = 4, *,
+                 rngs: nnx.Rngs):
         self.length = length
         self.base = max(length // 4, 1) if length > 16 else length
         self.cond = Condition(use_intensity, rngs=rngs)
@@ -112,7 +113,7 @@ class CNNRegressor(nnx.Module):
         self.c1 = Conv1D(channels, channels, 5, rngs=rngs)
         self.c2 = Conv1D(channels, channels, 5, rngs=rngs)
         self.c3 = Conv1D(channels, channels, 5, rngs=rngs)
-        self.out = Conv1D(channels, 4, 3, rngs=rngs)
+        self.out = Conv1D(channels, num_tendons, 3, rngs=rngs)
         self.channels = channels
 
     def __call__(self, text_emb, intensity):
@@ -125,4 +126,4 @@ class CNNRegressor(nnx.Module):
             # nearest-neighbour upsampling (a gather): cheap forward and backward on CPU
             src = jnp.minimum((jnp.arange(self.length) * self.base) // self.length, self.base - 1)
             h = h[..., src, :]
-        return self.out(h)  # (..., length, 4)
+        return self.out(h)  # (..., length, N_u)

@@ -1,0 +1,45 @@
+"""Training and sampling on an imported library (issue #18): N_u from the data, checkpoint refusals."""
+import numpy as np
+import pytest
+
+import jax
+import jgrounding as jg
+from jgrounding import importer, library, methods, sampling
+from jgrounding.training import TrainConfig
+from test_importer import write_folder
+
+
+@pytest.fixture(scope="module")
+def three_tendon_library(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("own")
+    out = tmp / "my_library.npz"
+    assert importer.main(["import", str(write_folder(tmp / "rec", num_tendons=3)), "--out", str(out),
+                          "--limits", "2:12", "--tendons", "3", "--controls", "4"]) == 0
+    return out
+
+
+@pytest.mark.parametrize("method", ["tuple_spline_cnn", "tuple_dense_cnn", "tuple_spline_rf"])
+def test_three_tendons_train_and_generate(three_tendon_library, method):
+    lib = jg.load_library(three_tendon_library)
+    trained = methods.train(method, lib, seeds=(0,), config=TrainConfig(steps=5, chunk=5), progress=False)
+    assert trained.num_tendons == 3
+    u = methods.generate(trained, np.zeros((2, 384), np.float32), np.array([1, 3]), jax.random.key(0), num_samples=2)
+    assert u.shape == (1, 2, 2, 150, 3) and 0.0 <= u.min() and u.max() <= 1.0
+
+
+def test_train_cli_and_sample_three_tendons(three_tendon_library, tmp_path):
+    from experiments import train
+
+    out = tmp_path / "mine"
+    assert train.main(["--library", str(three_tendon_library), "--out", str(out), "--steps", "10", "--chunk", "10"]) == 0
+    u = jg.sample(jax.random.key(0), "nodding", "moderate", num_samples=3, checkpoint=str(out))
+    assert u.shape == (3, 150, 3) and 0.0 <= u.min() and u.max() <= 1.0
+    with pytest.raises(ValueError, match=r"trained on a library without \(comforting, subtle\); its tuples: "
+                                         r"greeting/emphatic, nodding/moderate"):
+        jg.sample(jax.random.key(0), "comforting", "subtle", checkpoint=str(out))
+    arrays = dict(np.load(three_tendon_library))  # the library changes after training: the checkpoint is refused
+    arrays["u"] = arrays["u"] * 0.5
+    library.save(arrays, jg.load_library(three_tendon_library).meta, three_tendon_library)
+    with pytest.raises(ValueError, match="was trained on library .*my_library.npz with sha256 .* but that file now has"):
+        sampling.load.cache_clear()  # a new process would load it afresh
+        jg.sample(jax.random.key(0), "nodding", "moderate", checkpoint=str(out))
