@@ -1,12 +1,18 @@
 """The trunk in simulation: batched rollouts of actuation ``(B, 150, 4)`` on MuJoCo (native) or MJX.
 
-Two engines behind one function, :func:`rollout`:
+Two engines behind one function, :func:`rollout`, and one choice between them, ``engine="auto"``
+(the default):
 
-- ``"native"`` (the CPU default): ``mujoco.rollout`` over the batch, multi-threaded, reading the
-  backbone, tendon lengths and user contact force from sensors. On this 2-core CPU it is the fast path
-  (numbers in docs/versions.md and ``python -m experiments.bench trunk``).
+- ``"native"``: ``mujoco.rollout`` over the batch, multi-threaded, reading the backbone, tendon
+  lengths and user contact force from sensors. On CPU it is the fast path: about 10x MJX's physics
+  steps/s on this 2-core CPU (``python -m experiments.bench trunk`` prints both, for the ablation's
+  batch), and it needs no compilation.
 - ``"mjx"``: ``jit(vmap(lax.scan))`` over control steps with the physics substeps inside, compiled
-  once per batch size. It is the engine that scales on accelerators; on CPU it serves as a check.
+  once per chunk size (padded chunks of :data:`MJX_CHUNK`). It is the engine that scales on
+  accelerators; on CPU it serves as a check (the two agree to float precision).
+- ``"auto"``: ``"mjx"`` when JAX's default backend is an accelerator (GPU/TPU), else ``"native"``
+  (:func:`resolve_engine`). Every caller in the project (ablation, screened sampling, physics-aware
+  training) goes through it, so one flag decides the engine everywhere.
 
 Conventions (fixed; the library, the ablation and the CLI rely on them): the trunk hangs from its
 base at ``BASE_HEIGHT``; the user stands in front at +x; tendon 0 faces the user (+x), 1 the robot's
@@ -41,6 +47,8 @@ MAX_CONTACT_FORCE = 15.0  # N, normal force on the user
 NEAR_USER_DISTANCE = 0.10  # m: closer than this counts as "near the user"
 MAX_TIP_SPEED_NEAR_USER = 1.0  # m/s
 MAX_TIP_SPEED = 10.0  # m/s anywhere: beyond this the simulation has blown up
+ENGINES = ("auto", "native", "mjx")
+MJX_CHUNK = 2048  # MJX runs padded chunks of this many trajectories: one compiled program per process
 
 _N_POINTS = NUM_SEGMENTS + 1
 _SENSOR_TENDON = slice(3 * _N_POINTS, 3 * _N_POINTS + 4)
@@ -140,21 +148,33 @@ def _rollout_native(u: np.ndarray, contact: bool) -> Rollout:
     return _finish(backbone, sensordata[..., _SENSOR_TENDON], sensordata[..., _SENSOR_TOUCH])
 
 
-def rollout(u, *, engine: str = "native", contact: bool = True) -> Rollout:
+def resolve_engine(engine: str = "auto") -> str:
+    """``"auto"`` -> ``"mjx"`` on an accelerator backend (GPU/TPU), ``"native"`` on CPU; other names pass
+    through after validation."""
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
+    if engine != "auto":
+        return engine
+    import jax
+
+    return "native" if jax.default_backend() == "cpu" else "mjx"
+
+
+def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
     """Simulate actuation ``(T, 4)`` or ``(B, T, 4)`` in [0, 1]; returns a batch-first :class:`Rollout`.
 
-    ``engine``: ``"native"`` (MuJoCo, multi-threaded ``mujoco.rollout``; CPU default) or ``"mjx"``
-    (compiled batched JAX rollout; compile once per batch size). ``contact=False`` removes the user's
-    contact geometry (distances are still measured).
+    ``engine``: ``"auto"`` (default: native on CPU, MJX on an accelerator), ``"native"`` (MuJoCo,
+    multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded chunks of
+    :data:`MJX_CHUNK` or the batch if smaller). ``contact=False`` removes the user's contact geometry
+    (distances are still measured).
     """
-    if engine not in ("native", "mjx"):
-        raise ValueError(f"unknown engine {engine!r}; valid engines: native, mjx")
+    engine = resolve_engine(engine)
     u = validate_actuation(u)
     if engine == "native":
         return _rollout_native(u, contact)
     from jgrounding import trunk_mjx
 
-    return trunk_mjx.rollout_mjx(u, contact)
+    return trunk_mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, u.shape[0]))
 
 
 def _turning_angle(backbone: np.ndarray) -> np.ndarray:
@@ -218,3 +238,15 @@ def feasible(r: Rollout) -> np.ndarray:
     near = r.user_distance < NEAR_USER_DISTANCE
     fast_near = np.any(near & (r.tip_speed > MAX_TIP_SPEED_NEAR_USER), axis=1)
     return r.stable & (r.contact_force.max(axis=1) <= MAX_CONTACT_FORCE) & ~fast_near
+
+
+def feasibility_margin(r: Rollout) -> np.ndarray:
+    """``(B,)`` float: the smallest relative slack of :func:`feasible`'s bounds, ``min(1 - peak force /
+    MAX_CONTACT_FORCE, 1 - peak tip speed near the user / MAX_TIP_SPEED_NEAR_USER)``; -1 when unstable.
+    ``margin >= 0`` exactly when the sample is feasible; larger is safer (1 = no contact, tip never fast
+    near the user)."""
+    near = r.user_distance < NEAR_USER_DISTANCE
+    speed_near = np.where(near, np.nan_to_num(r.tip_speed, nan=np.inf), 0.0).max(axis=1)
+    force = np.nan_to_num(r.contact_force, nan=np.inf).max(axis=1)
+    margin = np.minimum(1.0 - force / MAX_CONTACT_FORCE, 1.0 - speed_near / MAX_TIP_SPEED_NEAR_USER)
+    return np.where(r.stable, margin, -1.0)
