@@ -2,9 +2,13 @@
 
 Trains the five methods over several seeds (vmapped), evaluates them on the 64 held-out tuples with
 the paper's metrics (success at tau = 0.35 of one sample per tuple, diversity over K_div = 30 samples,
-warm single-trajectory latency), adds the oracle and wrong-intent references, simulates generated
-samples on the trunk for the physics columns, and writes results/ablation.{md,csv,json} plus
-results/ablation_rms.npz (per-sample RMS, reused by the sweeps). Every cell is mean ± std over seeds.
+warm single-trajectory latency), adds the oracle and wrong-intent references, simulates every generated
+sample on the trunk for the physics columns (K_div x 64 per method and seed, batched, ``engine="auto"``:
+native MuJoCo on CPU, MJX on an accelerator; shape success under a tolerance calibrated from the
+library's own spread, shape diversity, feasibility), adds the physics-aware RF row (rejection-sampling
+fine-tuning on screened samples, :mod:`jgrounding.physics_training`), and writes
+results/ablation.{md,csv,json} plus results/ablation_rms.npz (per-sample RMS, reused by the sweeps).
+Every cell is mean ± std over seeds.
 """
 from __future__ import annotations
 
@@ -21,7 +25,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import checkpoints, distributed, library, load_library, methods, metrics, semantics, trunk
+from jgrounding import (checkpoints, distributed, library, load_library, methods, metrics, physics_training,
+                        semantics, trunk, trunk_eval)
 from jgrounding.training import TrainConfig
 
 PAPER = {  # Table II of the paper: success, diversity, time (ms)
@@ -29,7 +34,8 @@ PAPER = {  # Table II of the paper: success, diversity, time (ms)
     "tuple_spline_cnn": (0.562, 0.000, 1.89), "tuple_spline_ddpm": (0.719, 0.165, 7.86),
     "tuple_spline_rf": (0.772, 0.148, 4.87),
 }
-SHAPE_TAU = 0.05  # m: whole-body shape success threshold (mean backbone distance)
+PHYSICS_AWARE = "tuple_spline_rf_physics"  # the RF fine-tuned on screened samples (an extra row)
+DISPLAY = {**methods.DISPLAY, PHYSICS_AWARE: "Tuple + Spline + RF, physics-aware (RFT)"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,14 +45,17 @@ class AblationConfig:
     k_div: int = 30  # Table I
     tau: float = metrics.TAU_RMS
     euler_steps: int = 50  # Table I: S
-    physics_samples: int = 5  # samples per held-out tuple simulated (seed 0)
+    engine: str = "auto"  # trunk.rollout engine for the physics columns: native on CPU, MJX on an accelerator
+    physics_aware: bool = True  # add the physics-aware RF row (needs tuple_spline_rf in methods)
+    physics: physics_training.PhysicsConfig = physics_training.PhysicsConfig()
     methods: tuple[str, ...] = methods.METHODS
     out: str = "results"
     runs: str = "runs/ablation"
     devices: int = 1  # > 1 or 0 (= all): seeds (training) and samples (evaluation) split over a device mesh
 
 
-QUICK = dict(seeds=(0, 1), steps=300, k_div=8, physics_samples=2)
+QUICK = dict(seeds=(0, 1), steps=300, k_div=8,
+             physics=physics_training.PhysicsConfig(rounds=1, candidates=4, steps=100))
 
 
 def mean_std(x) -> tuple[float, float]:
@@ -69,19 +78,21 @@ def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     return u, r, div, cov, lat_ms, u.shape[0] * u.shape[1] * u.shape[2] / batch_s
 
 
-def physics(u_seed0, lib, cfg, ref):
-    """Shape RMS vs the held-out references' simulated backbones ``ref (64, T, 11, 3)``, feasibility and
-    shape success."""
-    ho = lib.heldout
-    k = min(cfg.physics_samples, u_seed0.shape[1])
-    sim = trunk.rollout(u_seed0[:, :k].reshape(-1, 150, 4))
-    bb = sim.backbone.reshape(len(ho), k, *ref.shape[1:])
-    dist = np.linalg.norm(bb - ref[:, None], axis=-1).mean(axis=(-1, -2))  # (64, k) metres
-    return {"shape_rms_m": float(dist.mean()), "shape_success": float((dist[:, 0] <= SHAPE_TAU).mean()),
-            "feasible": float(trunk.feasible(sim).mean())}
+def physics(u, ref, tol, engine="auto"):
+    """Every sample ``u (S, 64, K, T, 4)`` (S seeds) simulated against the held-out references' simulated
+    backbones ``ref (64, T, 11, 3)``: shape RMS, shape success (all samples, ``<= tol.tau_m``), shape
+    diversity and feasibility, each mean ± std over seeds; plus the rollouts' count and seconds."""
+    res = [trunk_eval.simulate_samples(x, ref, tol.tau_m, engine=engine) for x in u]
+    return {"shape_rms_m": mean_std([r["shape_rms"].mean() for r in res]),
+            "shape_success": mean_std([r["shape_success"].mean() for r in res]),
+            "shape_diversity_m": mean_std([r["diversity"].mean() for r in res]),
+            "feasible": mean_std([r["feasible"].mean() for r in res]),
+            "simulated": int(sum(r["simulated"] for r in res)), "samples": int(np.prod(u.shape[:3])),
+            "physics_s": float(sum(r["seconds"] for r in res)), "engine": res[0]["engine"]}
 
 
 def run(cfg: AblationConfig) -> dict:
+    t_run = time.perf_counter()
     lib = load_library()
     intent_emb = semantics.intent_embeddings()
     train_texts = semantics.embed([t for row in lib.train.texts for t in row]).reshape(len(lib.train), -1, 384)
@@ -89,22 +100,42 @@ def run(cfg: AblationConfig) -> dict:
     train_cfg = TrainConfig(steps=cfg.steps, chunk=min(1000, cfg.steps))
     mesh = None if cfg.devices == 1 else distributed.make_mesh(cfg.devices or None)
     rows, per_sample, samples = {}, {}, {}
-    ref_backbone = trunk.rollout(lib.heldout.u).backbone  # the held-out references, simulated once
+    t_lib = time.perf_counter()  # the library simulated once: held-out references + the shape tolerance
+    lib_u = np.concatenate([lib.train.u, lib.heldout.u])
+    lib_backbone = trunk.rollout(lib_u, engine=cfg.engine).backbone
+    ref_backbone = lib_backbone[len(lib.train):]
+    tol = trunk_eval.calibrate(lib_u, lib_backbone, np.concatenate([lib.train.intent, lib.heldout.intent]),
+                               np.concatenate([lib.train.intensity, lib.heldout.intensity]), cfg.tau)
+    physics_s = time.perf_counter() - t_lib
+    print(f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise shape "
+          f"RMS, as tau = {cfg.tau} is of its actuation RMS (within-tuple median {tol.within_tuple_median_m:.3f} m, "
+          f"wrong-intent {tol.wrong_intent_median_m:.3f} m)", flush=True)
     key = jax.random.key(2026)
-    for method in cfg.methods:
-        raw = methods.spec(method).condition == "raw"
+    todo = list(cfg.methods)
+    if cfg.physics_aware and "tuple_spline_rf" in todo:
+        todo.append(PHYSICS_AWARE)
+    rf_trained = None
+    for method in todo:
+        raw = method != PHYSICS_AWARE and methods.spec(method).condition == "raw"
         t0 = time.perf_counter()
-        trained = methods.train(method, lib, cfg.seeds, train_cfg, intent_emb=intent_emb,
-                                text_emb=train_texts if raw else None, mesh=mesh)
+        if method == PHYSICS_AWARE:  # fine-tunes the RF trained above (its simulation counts as physics time)
+            trained, rounds = physics_training.finetune(rf_trained, lib, jax.random.key(17), intent_emb=intent_emb,
+                                                        physics=cfg.physics, config=train_cfg)
+            physics_s += sum(r["seconds"] for r in rounds)
+        else:
+            trained = methods.train(method, lib, cfg.seeds, train_cfg, intent_emb=intent_emb,
+                                    text_emb=train_texts if raw else None, mesh=mesh)
+            rf_trained = trained if method == "tuple_spline_rf" else rf_trained
         train_s = time.perf_counter() - t0
         checkpoints.save(Path(cfg.runs) / method, trained.params,
-                         {"method": method, "seeds": list(cfg.seeds), "num_controls": 4,
+                         {"method": trained.method, "variant": method, "seeds": list(cfg.seeds), "num_controls": 4,
                           "config": dataclasses.asdict(train_cfg), "library_sha256": library.file_hash(),
                           "step": cfg.steps})
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
         u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
                                                       jax.random.fold_in(key, len(rows)), mesh)
-        phys = physics(u[0], lib, cfg, ref_backbone)
+        phys = physics(u, ref_backbone, tol, cfg.engine)
+        physics_s += phys["physics_s"]
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
         rows[method] = {
@@ -114,19 +145,22 @@ def run(cfg: AblationConfig) -> dict:
             "throughput_per_s": throughput, "train_s": train_s, **phys,
         }
         per_sample[method] = r
-        print(f"{methods.DISPLAY[method]:24s} success {rows[method]['success'][0]:.3f} ± {rows[method]['success'][1]:.3f}"
-              f"  div {rows[method]['diversity'][0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s", flush=True)
+        print(f"{DISPLAY[method]:24s} success {rows[method]['success'][0]:.3f} ± {rows[method]['success'][1]:.3f}"
+              f"  div {rows[method]['diversity'][0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s  feasible "
+              f"{phys['feasible'][0]:.4f} over {phys['samples']} simulated samples ({phys['physics_s']:.0f} s)", flush=True)
     refs = metrics.reference_baselines(lib, seed=0, draws=max(len(cfg.seeds), 5))
-    one = dataclasses.replace(cfg, physics_samples=1)
     rng = np.random.default_rng(0)
-    ref_phys = {name: physics(metrics.replay(lib, name, rng)[:, None], lib, one, ref_backbone)
+    ref_phys = {name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, cfg.engine)
                 for name in ("oracle", "wrong_intent_any_intensity")}
     mean_u = metrics.tuple_mean(lib)
     r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
     refs["tuple_mean"] = {"success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
                           "rms": (float(r_mean.mean()), 0.0)}
-    ref_phys["tuple_mean"] = physics(mean_u[:, None], lib, one, ref_backbone)
+    ref_phys["tuple_mean"] = physics(mean_u[None, :, None], ref_backbone, tol, cfg.engine)
+    physics_s += sum(p["physics_s"] for p in ref_phys.values())
     return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
+            "shape_tolerance": dataclasses.asdict(tol), "physics_s": physics_s, "run_s": time.perf_counter() - t_run,
+            "physics_engine": trunk.resolve_engine(cfg.engine),
             "per_sample_rms": per_sample, "samples": samples, "date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
                        f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})"}
@@ -134,6 +168,10 @@ def run(cfg: AblationConfig) -> dict:
 
 def fmt(ms):
     return f"{ms[0]:.3f} ± {ms[1]:.3f}"
+
+
+def fmt4(ms):
+    return f"{ms[0]:.4f} ± {ms[1]:.4f}"
 
 
 REFERENCES = (("oracle", "Oracle (replay same tuple)"), ("tuple_mean", "Tuple mean (avg. of its 3 train realizations)"),
@@ -145,26 +183,37 @@ def markdown(res: dict) -> str:
     lines = [f"Ablation (Table II), {len(cfg['seeds'])} seeds, {cfg['steps']} steps, K_div = {cfg['k_div']}, "
              f"tau = {cfg['tau']}, S = {cfg['euler_steps']}. {res['date']}, {res['machine']}.", "",
              "| Method | Succ. | Succ. (all samples) | Div. | Coverage RMS ↓ | Time (ms) | Shape RMS (m) | Shape succ. |"
-             " Feasible | Paper Succ. / Div. / Time |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             " Shape div. (m) | Feasible | Paper Succ. / Div. / Time |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for m, r in res["rows"].items():
-        p = PAPER[m]
-        lines.append(f"| {methods.DISPLAY[m]} | {fmt(r['success'])} | {fmt(r['success_all_samples'])} | "
-                     f"{fmt(r['diversity'])} | {fmt(r['coverage'])} | {r['time_ms']:.3f} | {r['shape_rms_m']:.3f} | "
-                     f"{r['shape_success']:.3f} | {r['feasible']:.3f} | {p[0]:.3f} / {p[1]:.3f} / {p[2]:.2f} |")
+        p = PAPER.get(m)
+        paper = f"{p[0]:.3f} / {p[1]:.3f} / {p[2]:.2f}" if p else "–"
+        lines.append(f"| {DISPLAY[m]} | {fmt(r['success'])} | {fmt(r['success_all_samples'])} | "
+                     f"{fmt(r['diversity'])} | {fmt(r['coverage'])} | {r['time_ms']:.3f} | {fmt(r['shape_rms_m'])} | "
+                     f"{fmt(r['shape_success'])} | {fmt(r['shape_diversity_m'])} | {fmt4(r['feasible'])} | {paper} |")
     tau = float(cfg["tau"])
     for name, label in REFERENCES:
         s = res["references"][name]["success"][tau]
         ph = res["reference_physics"][name]
-        lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {ph['shape_rms_m']:.3f} | "
-                     f"{ph['shape_success']:.3f} | {ph['feasible']:.3f} | – |")
+        lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {ph['shape_rms_m'][0]:.3f} | "
+                     f"{ph['shape_success'][0]:.3f} | – | {ph['feasible'][0]:.4f} | – |")
+    tol, n_sim = res["shape_tolerance"], sum(r["samples"] for r in res["rows"].values())
     lines += ["", "Succ.: one sample per held-out tuple within τ of its reference (the paper's protocol); "
               "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
               "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
               "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory, "
-              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included); Shape RMS: mean backbone distance to "
-              "the reference's simulated motion; Feasible: stable, contact force and tip speed near the user within "
-              "bounds (MuJoCo)."]
+              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included). "
+              f"Physics columns: every generated sample simulated ({n_sim:,} trajectories, K_div × 64 per method and "
+              f"seed, engine {res['physics_engine']}, {res['physics_s']:.0f} s of the run's {res['run_s']:.0f} s); "
+              "Shape RMS: backbone RMS (over time and the 11 backbone points) to the held-out reference's simulated "
+              f"motion; Shape succ.: fraction of all samples within {tol['tau_m']:.3f} m, the "
+              f"{tol['percentile']:.1f}th percentile of the library's pairwise shape RMS, as τ = {tol['tau_rms']} is of "
+              f"its pairwise actuation RMS (library: within-tuple median {tol['within_tuple_median_m']:.3f} m, wrong "
+              f"intent {tol['wrong_intent_median_m']:.3f} m; {100 * tol['oracle_success']:.0f}% of same-tuple and "
+              f"{100 * tol['wrong_intent_success']:.0f}% of different-intent pairs inside); Shape div.: mean pairwise "
+              "shape RMS of a tuple's K_div samples; Feasible: stable, contact force and tip speed near the user within "
+              "bounds (MuJoCo), over all samples. The physics-aware row fine-tunes the RF on its own screened samples "
+              "(jgrounding/physics_training.py)."]
     return "\n".join(lines) + "\n"
 
 
@@ -226,11 +275,13 @@ def write(res: dict, out: str) -> None:
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["method", "success_mean", "success_std", "success_all_mean", "success_all_std", "diversity_mean",
-                "diversity_std", "rms_mean", "time_ms", "throughput_per_s", "shape_rms_m", "shape_success",
-                "feasible", "train_s"])
+                "diversity_std", "rms_mean", "time_ms", "throughput_per_s", "shape_rms_m", "shape_success_mean",
+                "shape_success_std", "shape_diversity_m", "feasible_mean", "feasible_std", "simulated_samples",
+                "physics_s", "train_s"])
     for m, r in res["rows"].items():
         w.writerow([m, *r["success"], *r["success_all_samples"], *r["diversity"], r["rms"][0], r["time_ms"],
-                    r["throughput_per_s"], r["shape_rms_m"], r["shape_success"], r["feasible"], r["train_s"]])
+                    r["throughput_per_s"], r["shape_rms_m"][0], *r["shape_success"], r["shape_diversity_m"][0],
+                    *r["feasible"], r["samples"], r["physics_s"], r["train_s"]])
     write_atomic(outdir / "ablation.csv", buf.getvalue())
     light = {k: v for k, v in res.items() if k not in ("per_sample_rms", "samples")}
     write_atomic(outdir / "ablation.json", json.dumps(light, indent=1, default=float))
@@ -274,7 +325,9 @@ def main(argv=None) -> int:
     print(markdown(res))
     for f in findings(res):
         print("-", f)
-    print(f"\nwrote {cfg.out}/ablation.{{md,csv,json}} in {time.perf_counter() - t0:.0f} s")
+    print(f"\nphysics (every sample simulated, engine {res['physics_engine']}): {res['physics_s']:.0f} s of the run's "
+          f"{res['run_s']:.0f} s ({100 * res['physics_s'] / res['run_s']:.0f}%)")
+    print(f"wrote {cfg.out}/ablation.{{md,csv,json}} in {time.perf_counter() - t0:.0f} s")
     return 0
 
 

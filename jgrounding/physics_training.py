@@ -4,7 +4,7 @@ The simulator shapes the generator. Starting from a trained Tuple + Spline + RF 
 round
 
 1. draws ``candidates`` samples for each of the 64 (intent, intensity) tuples from the current model;
-2. rolls them all out in one batch (:func:`jgrounding.trunk.rollout`, ``engine="auto"``) and keeps the
+2. rolls them all out in one batch (:func:`jgrounding.trunk_eval.margins`, ``engine="auto"``) and keeps the
    ones whose feasibility margin (:func:`jgrounding.trunk.feasibility_margin`) is at least
    ``margin``: a buffer inside the bound, so the model learns to stay away from it, not to graze it;
 3. fine-tunes the model with the rectified-flow loss (Eq. rf_loss) on the kept samples' controls
@@ -18,13 +18,14 @@ preserved; the library keeps it on the demonstrations. This is reward-weighted f
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import flows, methods, splines, training, trunk
+from jgrounding import flows, methods, splines, training, trunk_eval
 from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
 
 METHOD = "tuple_spline_rf"
@@ -83,11 +84,12 @@ def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: Phy
         u = methods.generate(current, cond, inten, k_gen, num_samples=physics.candidates,
                              steps=physics.euler_steps)  # (S, 64, C, 150, 4)
         flat = u.reshape(-1, *u.shape[-2:])
-        sim = trunk.rollout(flat, engine=physics.engine)
-        margin = trunk.feasibility_margin(sim).reshape(u.shape[:3])
+        t0 = time.perf_counter()
+        margin = trunk_eval.margins(flat, engine=physics.engine).reshape(u.shape[:3])
+        seconds = time.perf_counter() - t0
         keep = margin >= physics.margin
         report.append({"round": rnd, "simulated": int(flat.shape[0]), "kept": float(keep.mean()),
-                       "feasible": float((margin >= 0).mean())})
+                       "feasible": float((margin >= 0).mean()), "seconds": seconds})
         controls = np.asarray(splines.fit(flat, num_controls=teacher.num_controls)).reshape(
             *u.shape[:3], -1)  # (S, 64, C, 4P)
         new = []

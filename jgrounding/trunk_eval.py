@@ -96,6 +96,14 @@ def calibrate(u: np.ndarray, backbone: np.ndarray, intent: np.ndarray, intensity
                           wrong_intent_success=float(np.mean(shape[wrong] <= tau_m)))
 
 
+def margins(u: np.ndarray, *, engine: str = "auto") -> np.ndarray:
+    """Feasibility margin (:func:`jgrounding.trunk.feasibility_margin`) of every trajectory ``u (B, T, 4)``,
+    rolled out in chunks of :data:`CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible."""
+    engine = trunk.resolve_engine(engine)
+    return np.concatenate([trunk.feasibility_margin(trunk.rollout(u[i:i + CHUNK], engine=engine))
+                           for i in range(0, len(u), CHUNK)])
+
+
 def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engine: str = "auto") -> dict:
     """Simulate every sample ``u (N, K, T, 4)`` and score it against ``reference (N, T, P, 3)``.
 

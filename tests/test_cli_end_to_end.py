@@ -65,13 +65,14 @@ def test_quick_ablation_end_to_end(tmp_path):
     res = json.loads((tmp_path / "ablation.json").read_text())
     rows = res["rows"]
     assert set(rows) == {"raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm",
-                         "tuple_spline_rf"}
+                         "tuple_spline_rf", "tuple_spline_rf_physics"}
     for r in rows.values():
-        assert 0.0 <= r["success"][0] <= 1.0 and 0.0 <= r["feasible"] <= 1.0 and r["time_ms"] > 0
+        assert 0.0 <= r["success"][0] <= 1.0 and 0.0 <= r["feasible"][0] <= 1.0 and r["time_ms"] > 0
+        assert r["samples"] == 64 * 8 * 2  # every generated sample simulated (K_div x 64 x seeds)
     cnn_div = max(rows[m]["diversity"][0] for m in rows if m.endswith("cnn"))
     assert cnn_div < 1e-6 < rows["tuple_spline_rf"]["diversity"][0]  # RF beats the CNNs on diversity
     assert (tmp_path / "ablation.md").read_text().count("|") > 50
-    assert (tmp_path / "ablation.csv").read_text().count("\n") == 6
+    assert (tmp_path / "ablation.csv").read_text().count("\n") == 7
 
 
 def test_interactive_loop_keeps_history(tmp_path):
