@@ -86,7 +86,7 @@ def calibrate(u: np.ndarray, backbone: np.ndarray, intent: np.ndarray, intensity
     iu = np.triu_indices(n, 1)
     act, shape = act[iu], shape[iu]
     q = float(np.mean(act <= tau_rms))
-    tau_m = float(np.quantile(shape, q))
+    tau_m = float(np.quantile(shape, q, method="inverted_cdf"))  # the smallest distance with a share q within
     same = (intent[iu[0]] == intent[iu[1]]) & (intensity[iu[0]] == intensity[iu[1]])
     wrong = intent[iu[0]] != intent[iu[1]]
     return ShapeTolerance(tau_m=tau_m, tau_rms=float(tau_rms), percentile=100 * q,

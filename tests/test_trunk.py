@@ -34,9 +34,18 @@ def test_each_tendon_bends_toward_its_side_and_cocontraction_retracts():
 
 def test_reaching_the_user_makes_gentle_contact_and_a_jump_is_infeasible():
     ramp = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None] * np.array([1.0, 0, 0, 0])
-    r = trunk.rollout(np.stack([ramp, hold([0.8, 0, 0, 0])]))  # slow approach vs a step command
+    r = trunk.rollout(np.stack([ramp, hold([0.8, 0, 0, 0]), hold([0, 0, 0, 0])]))  # slow approach, step, rest
     assert r.contact_force[0].max() > 0 and r.user_distance[0].min() < 0.03
-    assert trunk.feasible(r).tolist() == [True, False]  # the step hits the user too fast
+    assert trunk.feasible(r).tolist() == [True, False, True]  # the step hits the user too fast
+    margin = trunk.feasibility_margin(r)
+    assert ((margin >= 0) == trunk.feasible(r)).all() and margin[2] == pytest.approx(1.0)  # rest: all slack
+
+
+def test_auto_engine_is_native_on_cpu():
+    import jax
+
+    assert trunk.resolve_engine("auto") == ("native" if jax.default_backend() == "cpu" else "mjx")
+    assert trunk.resolve_engine("mjx") == "mjx"
 
 
 def test_features_cover_the_shape_vocabulary():
