@@ -1,16 +1,25 @@
-"""Refine the intents' tendon signatures into a code with large pairwise distance.
+"""Design the library's code: per intent, variant and intensity end, the tendon key poses.
 
-``python -m experiments.design_signatures`` starts from the semantic anchor table
-(``jgrounding.primitives.ANCHORS``: what each behaviour pulls, and when) and runs a deterministic
-projected gradient that pushes apart every pair of intents whose Catmull-Rom reconstructions are
-closer than the target RMS at the subtle intensity, while keeping each anchor's defining pulls
-(high anchors stay >= 0.6, anchors <= 0.2 stay <= 0.35). It prints the refined table, which is
-stored as ``jgrounding.primitives.SIGNATURES``; ``--check`` verifies that the stored table is what
-this script produces.
+``python -m experiments.design_signatures`` starts from the semantic anchors of
+:mod:`jgrounding.primitives` (what each behaviour pulls and when: ``ANCHORS``; the intensity rule
+``subtle_anchor`` / ``emphatic_anchor``; the variants ``VARIANTS``) and runs a deterministic projected
+gradient that pushes apart, in RMS of the Catmull-Rom reconstructions,
+
+- every two intents at the same intensity (all variants): ``T_INTENT``;
+- the two variants of a one-to-many intent at every intensity: ``T_VARIANT`` (weighted up: the
+  2 + 2 split only defeats the tuple mean when the variants are >= ~0.55 apart);
+- one intent's intensity levels two or more apart: ``T_FAR``; adjacent: ``T_ADJACENT``,
+
+while keeping each anchor's defining pulls (high anchors stay >= 0.55, anchors <= 0.2 stay <= 0.45;
+the intents that go away from the user keep the toward-user tendon <= 0.15).
+Intensity levels are the points 0, 1/3, 2/3, 1 of the segment from a variant's subtle end to its
+emphatic end. ``--write`` stores the result in ``jgrounding/library_code.py``; ``--check`` verifies
+that the stored code is what this script produces (rounded to 0.01).
 """
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -18,40 +27,86 @@ from jgrounding import primitives as pr
 from jgrounding import splines
 from jgrounding.vocabulary import INTENTS
 
+T_INTENT, T_VARIANT, T_FAR, T_ADJACENT = 0.45, 0.8, 0.6, 0.3
+VARIANT_WEIGHT = 4.0
+LEVELS = np.arange(4) / 3.0
+OUT = Path(pr.__file__).resolve().parent / "library_code.py"
 
-def refine(anchors: np.ndarray, target_subtle: float = 0.47, iters: int = 6000, lr: float = 0.01,
-           lam: float = 0.3) -> np.ndarray:
+
+def _targets(split):
+    idx = [(m, v, z) for m in range(len(split)) for v in range(2) for z in range(4) if v == 0 or split[m]]
+    n = len(idx)
+    target, weight = np.zeros((n, n)), np.ones((n, n))
+    for a, (m, v, z) in enumerate(idx):
+        for b, (k, w, y) in enumerate(idx):
+            if a == b:
+                continue
+            if m != k:
+                target[a, b] = T_INTENT if z == y else 0.0
+            elif v == w:
+                target[a, b] = T_FAR if abs(z - y) >= 2 else T_ADJACENT
+            else:
+                target[a, b] = T_VARIANT if z == y else 0.8 * T_VARIANT
+                weight[a, b] = VARIANT_WEIGHT
+    return idx, target, weight
+
+
+def refine(anchors: np.ndarray, split: np.ndarray, iters: int = 2000, lr: float = 0.02,
+           lam: float = 0.1) -> np.ndarray:
+    """``anchors (16, 2 variants, 2 ends, 4, 4)`` -> the refined code, same shape, rounded to 0.01."""
     basis = splines._basis_np(150, 4)
-    gram = basis.T @ basis / 150  # RMS^2 between splines = mean_j d_j^T G d_j / 4
-    target = target_subtle / pr.INTENSITY_SCALE[0]
-    lo = np.where(anchors >= 0.6, 0.6, 0.02)
-    hi = np.where(anchors <= 0.2, 0.35, 0.97)
-    s = anchors.copy()
-    off = ~np.eye(len(anchors), dtype=bool)
+    gram = basis.T @ basis / 150  # RMS^2 between splines = sum_j d_j^T G d_j / 4
+    idx, target, weight = _targets(split)
+    mi, vi, zi = (np.array(x) for x in zip(*idx))
+    lo = np.where(anchors >= 0.6, 0.55, 0.02)
+    hi = np.where(anchors <= 0.2, 0.45, 0.97)
+    hi[pr.REACH == 2, :, :, 0] = np.minimum(hi[pr.REACH == 2, :, :, 0], 0.15)  # away intents never lean in
+    hi[pr.NO_CONTACT, :, :, 0] = np.minimum(hi[pr.NO_CONTACT, :, :, 0], 0.7)  # lean in, never touch
+    code = anchors.copy()
     for _ in range(iters):
-        diff = s[:, None] - s[None]  # (16, 16, 4, P)
-        d = np.sqrt(np.einsum("abjp,pq,abjq->ab", diff, gram, diff) / 4 + 1e-9)
-        viol = np.where(off, np.maximum(target - d, 0.0), 0.0)
-        coef = -2.0 * viol / d / 4.0
-        grad = 2.0 * np.einsum("ab,pq,abjq->ajp", coef, gram, diff) + lam * (s - anchors)
-        s = np.clip(s - lr * grad, lo, hi)
-    return np.round(s, 2)
+        s = LEVELS[zi][:, None, None]
+        x = (1 - s) * code[mi, vi, 0] + s * code[mi, vi, 1]  # (n, 4, 4)
+        diff = x[:, None] - x[None]
+        d = np.sqrt(np.einsum("abjp,pq,abjq->ab", diff, gram, diff) / 4 + 1e-12)
+        coef = -weight * np.maximum(target - d, 0.0) / d / 2.0
+        gx = 2.0 * np.einsum("ab,pq,abjq->ajp", coef, gram, diff)
+        grad = np.zeros_like(code)
+        np.add.at(grad, (mi, vi, 0), (1 - s) * gx)
+        np.add.at(grad, (mi, vi, 1), s * gx)
+        code = np.clip(code - lr * (grad + lam * (code - anchors)), lo, hi)
+    return np.round(code, 2)
+
+
+def design() -> np.ndarray:
+    return refine(pr.design_anchors(), pr.SPLIT)
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--check", action="store_true", help="exit 1 unless primitives.SIGNATURES matches")
+    p.add_argument("--check", action="store_true", help="exit 1 unless jgrounding/library_code.py matches")
+    p.add_argument("--write", action="store_true", help="write jgrounding/library_code.py")
     args = p.parse_args(argv)
-    refined = refine(pr.ANCHORS)
+    code = design()
     if args.check:
-        ok = np.allclose(refined, pr.SIGNATURES, atol=0.011)
-        print("SIGNATURES match the refinement" if ok else "SIGNATURES differ from the refinement")
+        ok = np.allclose(code, pr.CODE, atol=0.011)
+        print("CODE matches the design" if ok else "CODE differs from the design")
         return 0 if ok else 1
-    print("SIGNATURES = {")
-    for m, name in enumerate(INTENTS):
-        rows = ", ".join("[" + ", ".join(f"{v:.2f}" for v in row) + "]" for row in refined[m])
-        print(f'    "{name}": ({rows}),')
-    print("}")
+    lines = ['"""Generated by `python -m experiments.design_signatures --write`: the library code."""', "",
+             "# CODE[intent][variant][end]: 4 tendons x 4 key poses; end 0 = subtle, 1 = emphatic.", "CODE = ["]
+    for m in range(len(INTENTS)):
+        lines.append(f"    [  # {INTENTS[m]}")
+        for v in range(2):
+            ends = ", ".join("[" + ", ".join("[" + ", ".join(f"{x:.2f}" for x in row) + "]" for row in code[m, v, e]) + "]"
+                             for e in range(2))
+            lines.append(f"        [{ends}],")
+        lines.append("    ],")
+    lines.append("]")
+    text = "\n".join(lines) + "\n"
+    if args.write:
+        OUT.write_text(text)
+        print(f"wrote {OUT}")
+    else:
+        print(text)
     return 0
 
 

@@ -27,6 +27,9 @@ from jgrounding import primitives, responses, safety, screening, splines
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
 FORMAT_VERSION = 1
+# The library's content version: bump when the design (primitives, code, screening, responses) changes.
+# Checkpoints record it with the library's sha256 and are refused on another library (methods.restore).
+LIBRARY_VERSION = "2.0-one-to-many"
 ASSETS = Path(__file__).resolve().parent.parent / "assets"
 DEFAULT_PATH = ASSETS / "library.npz"
 REGENERATE = "python -m experiments.build_library"
@@ -83,11 +86,14 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
     """Generate, reduce and screen; returns (arrays, card). Deterministic in ``config.seed``."""
     from tqdm import tqdm
 
-    keep = {k: [] for k in ("u", "controls", "intent", "intensity", "realization", "texts")}
+    keep = {k: [] for k in ("u", "controls", "intent", "intensity", "realization", "variant", "texts")}
     tried = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     accepted = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     per_check = {c: 0 for c in screening.CHECKS}
-    need = {(m, z): config.realizations for m in range(NUM_INTENTS) for z in range(NUM_INTENSITIES)}
+    # One-to-many: a tuple's realizations split evenly between its variants (primitives.variants_of).
+    plan = {(m, z): primitives.variants_of(m, config.realizations)
+            for m in range(NUM_INTENTS) for z in range(NUM_INTENSITIES)}
+    need = {(m, z, int(v)): int((vs == v).sum()) for (m, z), vs in plan.items() for v in np.unique(vs)}
     rngs = {key: np.random.default_rng([config.seed, *key]) for key in need}
     found = {key: [] for key in need}
     bar = tqdm(total=config.max_rounds, desc="screening rounds", disable=not progress)
@@ -95,21 +101,22 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         todo = [k for k in need if len(found[k]) < need[k]]
         if not todo:
             break
-        cand = np.stack([primitives.candidate(rngs[k], *k) for k in todo for _ in range(config.candidates_per_round)])
-        tuples = np.repeat(np.array(todo), config.candidates_per_round, axis=0)
+        cand = np.stack([primitives.candidate(rngs[k], k[0], k[1], k[2])
+                         for k in todo for _ in range(config.candidates_per_round)])
+        keys = np.repeat(np.array(todo), config.candidates_per_round, axis=0)
         controls, raw, u = _reduce(cand, config.num_controls)
-        checks = screening.screen(raw, u, tuples[:, 0])
+        checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1])
         for c in screening.CHECKS:
             per_check[c] += int(checks[c].sum())
-        for i, (m, z) in enumerate(map(tuple, tuples)):
-            tried[m, z] += 1
+        for i, key in enumerate(map(tuple, keys)):
+            tried[key[0], key[1]] += 1
             if checks["accepted"][i]:
-                accepted[m, z] += 1
-                if len(found[(m, z)]) < need[(m, z)]:
-                    found[(m, z)].append((controls[i], u[i]))
+                accepted[key[0], key[1]] += 1
+                if len(found[key]) < need[key]:
+                    found[key].append((controls[i], u[i]))
         bar.update(1)
     bar.close()
-    short = {f"{INTENTS[m]}/{INTENSITIES[z]}": len(v) for (m, z), v in found.items() if len(v) < need[(m, z)]}
+    short = {f"{INTENTS[m]}/{INTENSITIES[z]}/variant {v}": len(f) for (m, z, v), f in found.items() if len(f) < need[(m, z, v)]}
     if short:
         raise RuntimeError(f"screening kept too few realizations for {short}; raise BuildConfig.max_rounds")
     split_rng = np.random.default_rng([config.seed, 999])
@@ -118,13 +125,17 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         for z in range(NUM_INTENSITIES):
             text_rng = np.random.default_rng([config.seed, m, z, 7])
             held = int(split_rng.integers(config.realizations))
-            for r, (c, u) in enumerate(found[(m, z)]):
+            taken = {int(v): iter(found[(m, z, int(v))]) for v in np.unique(plan[(m, z)])}
+            for r, v in enumerate(plan[(m, z)]):
+                c, u = next(taken[int(v)])
                 keep["controls"].append(c)
                 keep["u"].append(u)
                 keep["intent"].append(m)
                 keep["intensity"].append(z)
                 keep["realization"].append(r)
-                keep["texts"].append(responses.response_texts(m, z, config.texts_per_record, text_rng))
+                keep["variant"].append(int(v))
+                keep["texts"].append(responses.response_texts(m, z, config.texts_per_record, text_rng,
+                                                              heldout=r == held))
                 heldout.append(r == held)
     arrays = {
         "u": np.asarray(keep["u"], np.float32),
@@ -132,11 +143,16 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         "intent": np.asarray(keep["intent"], np.int32),
         "intensity": np.asarray(keep["intensity"], np.int32),
         "realization": np.asarray(keep["realization"], np.int32),
+        "variant": np.asarray(keep["variant"], np.int32),
         "heldout": np.asarray(heldout, bool),
         "texts": np.asarray(keep["texts"], dtype=np.str_),
     }
+    arrays["library_version"] = np.asarray(LIBRARY_VERSION)
+    arrays["content_sha256"] = np.asarray(content_hash(arrays))
     card = {
         "format_version": FORMAT_VERSION,
+        "library_version": LIBRARY_VERSION,
+        "content_sha256": str(arrays["content_sha256"]),
         "config": dataclasses.asdict(config),
         "num_records": int(len(arrays["u"])),
         "num_train": int((~arrays["heldout"]).sum()),
@@ -149,6 +165,16 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         "regenerate": REGENERATE,
     }
     return arrays, card
+
+
+def content_hash(arrays: dict) -> str:
+    """sha256 over the name, dtype, shape and bytes of every record array (not the hash itself)."""
+    h = hashlib.sha256()
+    for name in sorted(k for k in arrays if k != "content_sha256"):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def to_bytes(arrays: dict) -> bytes:
@@ -214,3 +240,73 @@ if __name__ == "__main__":  # python -m jgrounding.library import DIR --out my_l
     from jgrounding import importer
 
     raise SystemExit(importer.main())
+
+
+# Brackets of the success metric (SPEC §3): expected values over the library, exact (every training
+# record of a reference's pool replayed against each held-out target, no sampling noise).
+BRACKET_RANGES = {  # at tau = 0.35: (low, high); the tuple mean is judged against the oracle
+    "oracle": (0.45, 0.92),
+    "wrong_intent": (0.0, 0.10),
+    "far_intensity": (0.0, 0.30),
+    "adjacent_intensity": (0.0, 0.80),
+    "heldout_4gram_overlap": (0.0, 0.30),
+}
+TUPLE_MEAN_GAP = 0.10  # the tuple mean is at least this far below the oracle
+
+
+def _bracket_pools(lib) -> dict:
+    tr, ho = lib.train, lib.heldout
+    same = tr.intent[None] == ho.intent[:, None]
+    dz = np.abs(tr.intensity[None] - ho.intensity[:, None])
+    return {"oracle": same & (dz == 0), "wrong_intent": ~same & (dz == 0),
+            "far_intensity": same & (dz >= 2), "adjacent_intensity": same & (dz == 1)}
+
+
+def bracket_distances(lib) -> dict[str, list[np.ndarray]]:
+    """Per held-out target, the RMS of every replay of each bracket (the tuple mean: one value)."""
+    from jgrounding import metrics
+
+    d = np.asarray(metrics.rms(lib.train.u[None], lib.heldout.u[:, None]))  # (64, 192)
+    out = {name: [d[j, pool[j]] for j in range(len(d))] for name, pool in _bracket_pools(lib).items()}
+    oracle = _bracket_pools(lib)["oracle"]
+    means = np.stack([lib.train.u[oracle[j]].mean(0) for j in range(len(d))])
+    out["tuple_mean"] = [np.atleast_1d(x) for x in np.asarray(metrics.rms(means, lib.heldout.u))]
+    return out
+
+
+def _ngrams(text: str, n: int = 4) -> set:
+    words = "".join(c.lower() if c.isalnum() or c == "'" else " " for c in text).split()
+    return {tuple(words[i:i + n]) for i in range(len(words) - n + 1)}
+
+
+def heldout_overlap(lib, n: int = 4) -> float:
+    """Share of the held-out responses' word n-grams that occur in training responses of the same intent."""
+    shared = total = 0
+    for m in np.unique(lib.heldout.intent):
+        seen = set().union(*(_ngrams(t, n) for row, i in zip(lib.train.texts, lib.train.intent) if i == m for t in row))
+        grams = [g for row, i in zip(lib.heldout.texts, lib.heldout.intent) if i == m for t in row for g in _ngrams(t, n)]
+        shared += sum(g in seen for g in grams)
+        total += len(grams)
+    return shared / max(total, 1)
+
+
+def brackets(lib, taus=(0.25, 0.30, 0.35, 0.40, 0.45)) -> dict:
+    """``{name: {tau: expected success}}`` for oracle, tuple mean, wrong intent, far and adjacent
+    intensity, plus ``heldout_4gram_overlap`` (a share, independent of tau)."""
+    dist = bracket_distances(lib)
+    order = ("oracle", "tuple_mean", "wrong_intent", "far_intensity", "adjacent_intensity")
+    out = {k: {float(t): float(np.mean([np.mean(x <= t) for x in dist[k]])) for t in taus} for k in order}
+    out["heldout_4gram_overlap"] = heldout_overlap(lib)
+    return out
+
+
+def bracket_violations(b: dict, tau: float = 0.35) -> list[str]:
+    """The bracket ranges of SPEC §3 that ``b`` (from :func:`brackets`) misses at ``tau``; empty if none."""
+    bad = []
+    for name, (lo, hi) in BRACKET_RANGES.items():
+        v = b[name] if name == "heldout_4gram_overlap" else b[name][tau]
+        if not lo <= v <= hi:
+            bad.append(f"{name} {v:.3f} outside [{lo}, {hi}]")
+    if b["tuple_mean"][tau] > b["oracle"][tau] - TUPLE_MEAN_GAP:
+        bad.append(f"tuple mean {b['tuple_mean'][tau]:.3f} is not {TUPLE_MEAN_GAP} below oracle {b['oracle'][tau]:.3f}")
+    return bad

@@ -1,19 +1,26 @@
 """Candidate actuation trajectories from elephant-inspired kinematic primitives (Sec. III-C.1).
 
-Each intent is a *tendon signature*: the pull of the four tendons (0 toward the user, 1 left, 2 away,
-3 right) at four key moments of the motion (tau = 0, 1/3, 2/3, 1), built from the primitives of
-SPEC §2 — bending toward a side (one tendon), curling (a strong pull, which bends the compliant tip
-most), retraction (co-contraction of all tendons shortens the trunk), extension (release), and
-compliant contact (a forward bend that reaches the user). Every realization also leans to the left
-or to the right (an extra pull on one lateral tendon, chosen by coin): bending direction.
+A trajectory is four tendon pulls (0 toward the user, 1 the robot's left, 2 away, 3 right) at four
+key moments (tau = 0, 1/3, 2/3, 1), built from the primitives of SPEC §2: bending toward a side (one
+tendon), curling (a strong pull bends the compliant tip most), retraction (co-contraction shortens
+the trunk), extension (release) and compliant contact (a forward bend that reaches the user).
 
-The signatures were chosen as a code with large pairwise distance, so that replaying a different
-intent is far in RMS even at the subtle intensity (see ``experiments/references.py``).
+**One-to-many** (Sec. IV: grounding is one-to-many). The intents in :data:`SPLIT` have two distinct
+valid variants, mirror images across the sagittal plane (:data:`VARIANTS` says why each is valid);
+a tuple's four realizations split 2 + 2 between them, so that their mean is neither. The other
+intents have one form and a small left/right tilt of the tip (close variants, well inside tau).
 
-A candidate u(tau) is a smooth (cosine-eased) interpolation of the signature's key poses on a time
-axis that is warped per realization, scaled by the intensity (reach / curvature), with per-realization
-variation in amplitude, timing, proximity and lateral direction. The library then reduces it with
-Eq. (ci) (``splines.fit``) and keeps the reconstruction only if it passes screening.
+**Intensity** is a real axis (SPEC §2: reach, curvature, tempo, proximity), not a scaling toward
+rest. Each variant has a *subtle* end (:func:`subtle_anchor`: the motion is kept back near the
+robot's body, at a respectful distance, with a late, slow onset) and an *emphatic* end
+(:func:`emphatic_anchor`: full reach toward the user, co-contraction that stiffens and curls the
+trunk, on time); moderate and pronounced are the points 1/3 and 2/3 of the way. The ends were
+refined into a code in which every two intents, every two variants and every two intensity levels
+two apart are far in RMS (``python -m experiments.design_signatures``; :data:`CODE`).
+
+A candidate is a cosine-eased interpolation of the key poses on a time axis warped per realization,
+with per-realization variation in amplitude, timing and key-pose noise. The library reduces it with
+Eq. (ci) and keeps it only if it passes screening.
 """
 
 from __future__ import annotations
@@ -22,88 +29,118 @@ import dataclasses
 
 import numpy as np
 
+from jgrounding.library_code import CODE as _CODE
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
 NUM_STEPS = 150
 KEY_TIMES = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
+MIRROR = np.array([0, 3, 2, 1])  # left <-> right tendons
 
-# Semantic anchors: key poses per intent, written from SPEC §2. The stored SIGNATURES below are
-# these anchors refined into a code by `python -m experiments.design_signatures`.
-# Key poses per intent: rows are (toward, L, away, R) tendons, columns the four key moments.
-# Levels: 0 slack .. 1 largest safe pull (before the intensity scale).
+# Emphatic key poses of variant A per intent, written from SPEC §2: rows (toward, L, away, R), columns
+# the four key moments; 0 slack .. 1 largest safe pull.
 _ANCHORS = {
-    # rises toward the user, then waves L-R-L
-    "greeting": ([.15, .75, .75, .45], [.05, .95, .05, .85], [.05, .05, .05, .05], [.05, .05, .9, .05]),
+    # rises toward the user on its left side and waves (lateral pull pulses over a left-held bend)
+    "greeting": ([.15, .8, .8, .5], [.6, .95, .45, .95], [.05, .05, .05, .05], [.05, .05, .6, .05]),
     # slow lowering wave that ends retracted (all tendons co-contracted)
-    "farewell": ([.05, .05, .05, .3], [.85, .05, .75, .5], [.05, .2, .3, .5], [.05, .8, .05, .5]),
-    # slow approach toward the user, then gentle patting (toward pull pulses)
-    "comforting": ([.05, .7, .4, .85], [.05, .2, .6, .6], [.05, .05, .05, .05], [.05, .05, .05, .05]),
+    "farewell": ([.05, .05, .05, .3], [.85, .6, .9, .5], [.05, .2, .3, .6], [.05, .05, .05, .05]),
+    # slow approach toward the user's left shoulder, then gentle patting (toward pull pulses)
+    "comforting": ([.05, .7, .4, .85], [.6, .85, .85, .85], [.05, .05, .05, .05], [.05, .05, .05, .05]),
     # leans toward the user and holds nearly still, tip slightly tilted
     "attentive_listening": ([.55, .6, .6, .6], [.35, .35, .35, .35], [.05, .05, .05, .05], [.05, .05, .05, .05]),
-    # extends (slack) and probes side to side with the tip, a little forward
-    "curiosity": ([.3, .35, .35, .3], [.05, .75, .05, .75], [.35, .05, .05, .05], [.75, .05, .75, .05]),
-    # wide curl around the user: strong forward curl with a lateral wrap
-    "embracing": ([.05, .7, .95, .95], [.05, .35, .6, .6], [.05, .05, .05, .05], [.05, .05, .05, .05]),
+    # extends and probes on the left side of the object, sniffing side to side
+    "curiosity": ([.3, .35, .35, .3], [.6, .95, .45, .95], [.35, .05, .05, .05], [.05, .05, .5, .05]),
+    # wide curl around the user, wrapping from the robot's left
+    "embracing": ([.05, .7, .95, .95], [.6, .9, .9, .9], [.05, .05, .05, .05], [.05, .05, .05, .05]),
     # retracts (co-contraction) and bends away from the user
     "withdrawal": ([.05, .05, .05, .05], [.05, .35, .4, .4], [.15, .8, .95, .95], [.05, .2, .3, .3]),
-    # curls the tip inward into a tight spiral near the body (strong lateral curl + retraction)
-    "coiling": ([.05, .2, .35, .35], [.05, .05, .05, .05], [.05, .3, .45, .45], [.15, .8, .95, .95]),
-    # loose bouncy pendulum: large lateral swings with a little away-pull
+    # curls the tip inward into a tight spiral near the body, to the robot's right (strong lateral curl)
+    "coiling": ([.05, .2, .35, .35], [.05, .05, .05, .05], [.05, .3, .45, .45], [.6, .85, .95, .95]),
+    # loose bouncy pendulum: lateral swings with a little away-pull
     "playful_swing": ([.05, .05, .05, .05], [.95, .05, .95, .05], [.3, .45, .3, .45], [.05, .95, .05, .95]),
-    # bobs up and down: co-contraction pulses (shorten/lengthen) with a forward lean
+    # bobs up and down: co-contraction pulses (shorten / lengthen) with a forward lean
     "nodding": ([.35, .85, .35, .85], [.05, .55, .05, .55], [.05, .5, .05, .5], [.05, .55, .05, .55]),
-    # shakes side to side: lateral oscillation with co-contracted away tendon (stiff, upright)
+    # shakes side to side: lateral oscillation with a co-contracted away tendon (stiff, upright)
     "refusing": ([.05, .05, .05, .05], [.05, .85, .05, .85], [.6, .6, .6, .6], [.85, .05, .85, .05]),
-    # repeatedly curls the tip back toward the robot: away-pull pulses
-    "beckoning": ([.45, .25, .45, .25], [.05, .05, .05, .05], [.15, .9, .25, .9], [.05, .05, .05, .05]),
-    # extends straight toward a direction and holds: toward + away co-pull straightens, small lateral aim
-    "pointing": ([.15, .9, .9, .9], [.05, .6, .6, .6], [.05, .5, .5, .5], [.05, .05, .05, .05]),
-    # rises high with energetic flourishes: all tendons strong (shortened, raised) with lateral flourish
+    # curls the tip back toward the robot from its left: away-pull pulses over a left-held bend
+    "beckoning": ([.45, .25, .45, .25], [.6, .85, .85, .85], [.15, .9, .25, .9], [.05, .05, .05, .05]),
+    # extends toward a target on the user's left and holds
+    "pointing": ([.15, .9, .9, .9], [.6, .85, .85, .85], [.05, .5, .5, .5], [.05, .05, .05, .05]),
+    # rises high with energetic flourishes: all tendons strong (shortened, raised), lateral flourish
     "celebrating": ([.55, .95, .6, .95], [.5, .95, .3, .95], [.55, .95, .6, .95], [.5, .3, .95, .3]),
     # relaxes and droops: almost slack, slow
     "resting": ([.1, .05, .05, .05], [.1, .05, .05, .05], [.1, .05, .05, .05], [.1, .05, .05, .05]),
-    # reaches toward the user, tip curled upward (strong toward pull late), lateral aim
-    "offering": ([.05, .5, .95, .95], [.05, .05, .05, .05], [.05, .05, .05, .05], [.05, .3, .3, .3]),
+    # reaches toward the user with the tip curled upward, handing over from its left
+    "offering": ([.05, .5, .95, .95], [.6, .85, .85, .85], [.05, .05, .05, .05], [.05, .3, .3, .3]),
 }
 ANCHORS = np.array([np.array(_ANCHORS[m], dtype=np.float64) for m in INTENTS])  # (16, 4, 4)
 
-# The intents' signatures: ANCHORS refined into a code (python -m experiments.design_signatures).
-_SIGNATURES = {
-    "greeting": ([0.02, 0.97, 0.97, 0.07], [0.02, 0.97, 0.02, 0.97], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.97, 0.35]),
-    "farewell": ([0.02, 0.02, 0.02, 0.46], [0.97, 0.35, 0.97, 0.79], [0.02, 0.02, 0.97, 0.89], [0.27, 0.97, 0.02, 0.29]),
-    "comforting": ([0.35, 0.97, 0.02, 0.60], [0.02, 0.02, 0.97, 0.97], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02]),
-    "attentive_listening": ([0.97, 0.97, 0.97, 0.90], [0.97, 0.97, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02]),
-    "curiosity": ([0.35, 0.02, 0.02, 0.02], [0.35, 0.97, 0.02, 0.97], [0.42, 0.02, 0.02, 0.02], [0.97, 0.02, 0.97, 0.09]),
-    "embracing": ([0.02, 0.97, 0.97, 0.97], [0.02, 0.02, 0.97, 0.97], [0.02, 0.02, 0.02, 0.02], [0.12, 0.02, 0.02, 0.02]),
-    "withdrawal": ([0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.97, 0.78], [0.03, 0.97, 0.97, 0.97], [0.02, 0.02, 0.02, 0.36]),
-    "coiling": ([0.11, 0.35, 0.02, 0.14], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.97, 0.78], [0.11, 0.97, 0.97, 0.97]),
-    "playful_swing": ([0.02, 0.02, 0.02, 0.02], [0.97, 0.02, 0.97, 0.02], [0.83, 0.97, 0.02, 0.02], [0.11, 0.97, 0.02, 0.97]),
-    "nodding": ([0.88, 0.97, 0.02, 0.97], [0.02, 0.97, 0.02, 0.27], [0.07, 0.97, 0.02, 0.42], [0.26, 0.97, 0.02, 0.58]),
-    "refusing": ([0.02, 0.02, 0.02, 0.02], [0.07, 0.97, 0.02, 0.89], [0.97, 0.97, 0.97, 0.79], [0.97, 0.02, 0.97, 0.02]),
-    "beckoning": ([0.60, 0.02, 0.97, 0.52], [0.02, 0.02, 0.02, 0.02], [0.35, 0.97, 0.69, 0.97], [0.02, 0.02, 0.02, 0.02]),
-    "pointing": ([0.02, 0.97, 0.97, 0.97], [0.04, 0.97, 0.97, 0.72], [0.02, 0.97, 0.97, 0.63], [0.02, 0.02, 0.02, 0.02]),
-    "celebrating": ([0.68, 0.97, 0.97, 0.97], [0.70, 0.97, 0.28, 0.97], [0.68, 0.97, 0.94, 0.97], [0.66, 0.85, 0.97, 0.43]),
-    "resting": ([0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02]),
-    "offering": ([0.02, 0.02, 0.97, 0.97], [0.02, 0.02, 0.02, 0.02], [0.02, 0.02, 0.02, 0.02], [0.16, 0.97, 0.86, 0.30]),
+# One-to-many intents: variant B is variant A mirrored (left <-> right). Why each is valid:
+VARIANTS = {
+    "greeting": "a wave raised on the robot's left or on its right: people wave with either hand",
+    "comforting": "patting the user's left or right shoulder: both console",
+    "curiosity": "probing the object from its left or its right side",
+    "embracing": "a hug wraps from either side",
+    "coiling": "the spiral curls to the left or to the right; the shy self-hug is the same",
+    "beckoning": "the tip curls in from the left or from the right: both say 'come here'",
+    "pointing": "two targets, to the left and to the right (the door, the shelf): pointing is at a target",
+    "offering": "handing over from the left or from the right of the user",
 }
-SIGNATURES = np.array([np.array(_SIGNATURES[m], dtype=np.float64) for m in INTENTS])  # (16, 4, 4)
+SPLIT = np.array([m in VARIANTS for m in INTENTS])
+# Why the others have one form: a mirror of a symmetric motion is itself (attentive listening,
+# nodding, resting, celebrating, withdrawal); the swing's and the refusal's other phase and the
+# farewell's other side are only ~0.4 RMS apart with P = 4 controls (the splines smooth the
+# alternation): close enough that a replay of the other phase is sometimes within tau, too far to
+# be the same answer; we keep one phase and leave the side to the tilt.
+
+REACH = np.array([2 if m in ("withdrawal", "coiling", "resting", "refusing") else 0 for m in INTENTS])
+# Intents that lean toward the user without touching: their toward-user pull stays below contact.
+NO_CONTACT = np.array([m in ("attentive_listening", "nodding", "celebrating", "greeting", "pointing", "refusing")
+                       for m in INTENTS])
 
 
-# Intensity (subtle .. emphatic) scales reach / curvature / contact proximity, and tempo (motion
-# key poses come earlier, so the expressive part lasts longer and moves faster).
-INTENSITY_SCALE = np.array([0.76, 0.84, 0.92, 1.0])
-INTENSITY_TEMPO = np.array([0.05, 0.02, -0.01, -0.04])  # shift of the middle key times
+def subtle_anchor(poses: np.ndarray, reach: int) -> np.ndarray:
+    """The subtle end of a variant: kept back near the body, little reach, a late, slow onset."""
+    p = poses.copy()
+    p[:, 1:] = 0.5 * poses[:, 1:] + 0.5 * poses[:, :-1]  # half a key moment late: slower tempo
+    p[reach] = 0.05 + (p[reach] - 0.05) * 0.15  # small reach in the intent's own direction
+    if reach == 0:  # intents that go toward the user are held back by the away tendon: a respectful distance
+        p[2] += 0.4 * (1.0 - p[2])
+    return p
+
+
+def emphatic_anchor(poses: np.ndarray) -> np.ndarray:
+    """The emphatic end: full reach as written, slack tendons co-contracted (stiffer, more curvature)."""
+    p = poses.copy()
+    p[:, 1:] = np.where(p[:, 1:] < 0.2, p[:, 1:] + 0.25, p[:, 1:])
+    return p
+
+
+def design_anchors() -> np.ndarray:
+    """``(16, 2, 2, 4, 4)``: [intent, variant, end (subtle, emphatic)] key poses before refinement."""
+    out = np.zeros((len(INTENTS), 2, 2, 4, 4))
+    for m in range(len(INTENTS)):
+        out[m, 0] = subtle_anchor(ANCHORS[m], REACH[m]), emphatic_anchor(ANCHORS[m])
+        out[m, 1] = out[m, 0][:, MIRROR]
+    return out
+
+
+CODE = np.array(_CODE, dtype=np.float64)  # (16, 2, 2, 4, 4), refined design_anchors()
+
+
+def key_poses(intent: int, variant: int, intensity: int) -> np.ndarray:
+    """``(4, 4)`` key poses of the tuple's variant: ``intensity / 3`` of the way from subtle to emphatic."""
+    s = intensity / (NUM_INTENSITIES - 1)
+    return (1.0 - s) * CODE[intent, variant, 0] + s * CODE[intent, variant, 1]
 
 
 @dataclasses.dataclass(frozen=True)
 class Variation:
-    """Spread of the within-tuple realizations (SPEC §3)."""
+    """Spread of the realizations within one variant (SPEC §3)."""
 
-    amplitude: float = 0.12  # relative, uniform +-
-    timing: float = 0.10  # shift of the middle key times, uniform +-
-    proximity: float = 0.10  # offset of the toward-user tendon where it is pulled, uniform +-
-    jitter: float = 0.07  # per key-pose noise (std)
-    tilt: float = 0.22  # extra pull of one lateral tendon (left or right, by coin): bending direction
+    amplitude: float = 0.08  # relative, uniform +-
+    timing: float = 0.06  # shift of the middle key times, uniform +-
+    jitter: float = 0.04  # per key-pose noise (std)
+    tilt: float = 0.15  # intents with one form: extra pull of one lateral tendon (coin): tip tilt
 
 
 def _ease(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -119,31 +156,20 @@ def _interpolate(poses: np.ndarray, times: np.ndarray, num_steps: int) -> np.nda
     return _ease(poses[:, seg], poses[:, seg + 1], s).T
 
 
-def candidate(rng: np.random.Generator, intent: int, intensity: int,
+def candidate(rng: np.random.Generator, intent: int, intensity: int, variant: int = 0,
               variation: Variation = Variation(), num_steps: int = NUM_STEPS) -> np.ndarray:
-    """One candidate trajectory ``(T, 4)`` for the tuple, drawn with ``rng``."""
-    poses = SIGNATURES[intent].copy()
-    side = 1 if rng.random() < 0.5 else 3  # bend direction: toward the robot's left or right
-    poses[side] += variation.tilt * rng.uniform(0.6, 1.0)
-    scale = INTENSITY_SCALE[intensity] * (1.0 + rng.uniform(-variation.amplitude, variation.amplitude))
+    """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``."""
+    poses = key_poses(intent, variant, intensity)
+    if not SPLIT[intent]:
+        poses[1 if rng.random() < 0.5 else 3] += variation.tilt * rng.uniform(0.6, 1.0)
     base = 0.05
-    poses = base + (poses - base) * scale
-    pulled = poses[0] > 0.2
-    poses[0] = np.where(pulled, poses[0] + rng.uniform(-variation.proximity, variation.proximity), poses[0])
-    poses = poses + rng.normal(0.0, variation.jitter, poses.shape)
-    poses = np.clip(poses, 0.02, 0.97)
+    poses = base + (poses - base) * (1.0 + rng.uniform(-variation.amplitude, variation.amplitude))
+    poses = np.clip(poses + rng.normal(0.0, variation.jitter, poses.shape), 0.02, 0.97)
     times = KEY_TIMES.copy()
-    shift = INTENSITY_TEMPO[intensity] + rng.uniform(-variation.timing, variation.timing)
-    times[1:3] = np.clip(times[1:3] + shift, 0.12, 0.88)
+    times[1:3] = times[1:3] + rng.uniform(-variation.timing, variation.timing)
     return _interpolate(poses, times, num_steps)
 
 
-def candidates(seed: int, per_tuple: int, variation: Variation = Variation()) -> np.ndarray:
-    """``(16, 4, per_tuple, T, 4)`` candidates, deterministic in ``seed`` (one stream per tuple)."""
-    out = np.empty((len(INTENTS), NUM_INTENSITIES, per_tuple, NUM_STEPS, 4))
-    for m in range(len(INTENTS)):
-        for z in range(NUM_INTENSITIES):
-            rng = np.random.default_rng([seed, m, z])
-            for k in range(per_tuple):
-                out[m, z, k] = candidate(rng, m, z, variation)
-    return out
+def variants_of(intent: int, realizations: int = 4) -> np.ndarray:
+    """Variant of each realization of a tuple: split evenly (A, B, A, B) or all A."""
+    return np.arange(realizations) % 2 if SPLIT[intent] else np.zeros(realizations, int)

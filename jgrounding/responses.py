@@ -4,6 +4,11 @@ The paper generates them with an MLLM over offline cue-history instances; we gen
 templates with variety — situation x response plan x intensity modifier — phrased as an MLLM would
 write a social response plan. The ``Raw`` ablation baseline conditions on their text embeddings.
 The evaluation set for the text -> tuple reducer is written separately and never built from these.
+
+Held-out pairs (one per tuple) take their texts from their own pool — :data:`HELDOUT_SITUATIONS`,
+:data:`HELDOUT_PLANS`, :data:`HELDOUT_MODIFIERS`, written separately and never used for a training
+pair — so the Raw condition is tested on new phrasing, as in the paper, where every held-out pair has
+its own MLLM response.
 """
 
 from __future__ import annotations
@@ -80,10 +85,75 @@ MODIFIERS = {
 }
 
 
-def response_texts(intent: int, intensity: int, count: int, rng: np.random.Generator) -> tuple[str, ...]:
-    """``count`` distinct response texts for the tuple, drawn with ``rng``."""
+HELDOUT_SITUATIONS = {
+    "greeting": ["A neighbour I have not seen for weeks pops her head around the corner.",
+                 "Grandpa arrives for his weekly visit, grinning."],
+    "farewell": ["Coat on and bag in hand, my friend heads for the exit.",
+                 "Visiting hours are over; the nurse leads the guest out."],
+    "comforting": ["My friend's dog died this morning and he keeps wiping his eyes.",
+                   "She failed the driving test again and slumps in the chair."],
+    "attentive_listening": ["He begins describing his childhood village in detail.",
+                            "A girl whispers that she has a secret to share."],
+    "curiosity": ["A strange humming box was left on the floor beside me.",
+                  "Someone unwrapped a parcel full of odd shapes."],
+    "embracing": ["After a long trip abroad, my owner rushes over, arms wide.",
+                  "A toddler toddles up and throws both arms out."],
+    "withdrawal": ["An elderly man shrinks back whenever I shift position.",
+                   "She waves her palm at me: stop, not now."],
+    "coiling": ["Everyone at the party turns to stare at me at once.",
+                "Thunder cracks outside and the lights flicker."],
+    "playful_swing": ["The kids put on a silly song and start hopping around.",
+                      "A puppy chases its tail right next to me."],
+    "nodding": ["She wonders aloud if tomorrow at nine works for me.",
+                "He double-checks that the plan sounds right."],
+    "refusing": ["A boy dares me to knock the vase off the table.",
+                 "Someone wants me to grab a hot pan."],
+    "beckoning": ["A nervous new student lingers by the far wall.",
+                  "My friend is stuck at the gate, not sure whether to enter."],
+    "pointing": ["A delivery driver asks which door is the right one.",
+                 "Grandma cannot find her glasses; they lie on the windowsill."],
+    "celebrating": ["Our team just took the championship trophy!",
+                    "She got the scholarship she dreamed of!"],
+    "resting": ["The house is dark and everybody has gone to bed.",
+                "A long afternoon with nothing happening drags on."],
+    "offering": ["My friend is shivering and the blanket is right by me.",
+                 "The child keeps eyeing the apple I hold."],
+}
+HELDOUT_PLANS = {
+    "greeting": ["lift up and say hi with a swaying hello", "hail her warmly with a raised trunk"],
+    "farewell": ["wish them safe travels, swaying down to a tucked rest", "send a parting sway and fold up"],
+    "comforting": ["ease over and soothe him with a soft touch", "drift close and reassure her tenderly"],
+    "attentive_listening": ["bend forward and hang on every word", "incline quietly toward her, all ears"],
+    "curiosity": ["nose around the thing, exploring it", "inspect it inquisitively with my tip"],
+    "embracing": ["enfold them in a cuddle", "gather the child into a gentle wrap"],
+    "withdrawal": ["shrink away to leave him room", "draw back out of her way"],
+    "coiling": ["roll myself up bashfully", "wind inward and hide"],
+    "playful_swing": ["sway merrily to the rhythm", "rock loosely to and fro for fun"],
+    "nodding": ["signal yes with a bob", "dip up and down in assent"],
+    "refusing": ["wag a firm no", "turn it down with a sideways shake"],
+    "beckoning": ["invite them over with a curling gesture", "coax her nearer with a summoning curl"],
+    "pointing": ["aim my trunk at the spot and keep it there", "direct them by stretching toward the place"],
+    "celebrating": ["rejoice with a triumphant burst", "toot and flourish in triumph"],
+    "resting": ["hang limp and unwind", "doze with my trunk slack"],
+    "offering": ["pass it across to them", "present it held aloft on my tip"],
+}
+HELDOUT_MODIFIERS = {
+    "subtle": ["Very faintly, {p}; hardly any motion.", "With restraint, {p} — tiny and unhurried."],
+    "moderate": ["Without fuss, {p}.", "Evenly and steadily, {p}."],
+    "pronounced": ["Plainly {p}, a broad visible gesture.", "With conviction, {p}, large and clear."],
+    "emphatic": ["Wildly {p} — maximum vigor!", "Passionately {p}, huge and quick!"],
+}
+assert set(HELDOUT_SITUATIONS) == set(HELDOUT_PLANS) == set(INTENTS)
+
+
+def response_texts(intent: int, intensity: int, count: int, rng: np.random.Generator,
+                   heldout: bool = False) -> tuple[str, ...]:
+    """``count`` distinct response texts for the tuple, drawn with ``rng`` (from the held-out pool
+    when ``heldout``)."""
     m, z = INTENTS[intent], INTENSITIES[intensity]
-    combos = [(s, p, t) for s in SITUATIONS[m] for p in PLANS[m] for t in MODIFIERS[z]]
+    situations, plans, modifiers = ((HELDOUT_SITUATIONS, HELDOUT_PLANS, HELDOUT_MODIFIERS) if heldout
+                                    else (SITUATIONS, PLANS, MODIFIERS))
+    combos = [(s, p, t) for s in situations[m] for p in plans[m] for t in modifiers[z]]
     pick = rng.choice(len(combos), size=min(count, len(combos)), replace=False)
     out = []
     for i in pick:

@@ -17,36 +17,58 @@ MAX_OVERSHOOT = 0.30  # the raw reconstruction may leave [0, 1] by this much (sa
 MAX_JERK = 0.03  # max |third difference| of u per step: a saturation kink at a bound is <= one slew step
 
 # Semantic agreement of the simulated shape with the intent (features from trunk.features; metres,
-# radians, m/s). Each rule is a readable statement of what the behaviour must show.
+# radians, m/s). Each rule is a readable statement of what the behaviour must show. ``z`` is the
+# intensity index (0 subtle .. 3 emphatic): reach and proximity grow with it (SPEC §2), so a rule asks
+# for contact or a long reach only where the intensity calls for it (``near(z)``, ``reach(z)``), and
+# a subtle motion must keep its respectful distance (no contact: ``far(z)``).
+NEAR = (0.30, 0.28, 0.24, 0.15)  # m: the tip comes at least this close to the user, per intensity
+REACH = (-0.05, -0.03, 0.02, 0.12)  # m: toward-user reach of intents that go toward the user, per intensity
+
+
+def _near(f, z):
+    return f["min_user_distance"] < np.take(NEAR, z)
+
+
+def _reach(f, z):
+    return f["reach_toward_user"] > np.take(REACH, z)
+
+
+def _respectful(f, z):
+    return (z >= 2) | (f["min_user_distance"] > 0.10)
+
+
 RULES = {
-    "greeting": lambda f: (f["reach_toward_user"] > 0.12) & (f["lateral_reversals"] >= 1),
-    "farewell": lambda f: (f["lateral_reversals"] >= 1) & (f["max_tip_height"] > 0.55),
-    "comforting": lambda f: f["min_user_distance"] < 0.12,
-    "attentive_listening": lambda f: f["reach_toward_user"] > 0.15,
-    "curiosity": lambda f: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.25),
-    "embracing": lambda f: (f["curvature_max"] > 1.4) & (f["min_user_distance"] < 0.12),
-    "withdrawal": lambda f: (f["retreat_from_user"] > 0.12) & (f["reach_toward_user"] < 0.05),
-    "coiling": lambda f: (f["curvature_max"] > 1.2) & (f["reach_toward_user"] < 0.08),
-    "playful_swing": lambda f: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.3),
-    "nodding": lambda f: f["vertical_reversals"] >= 2,
-    "refusing": lambda f: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.25),
-    "beckoning": lambda f: (f["vertical_reversals"] >= 2) & (f["retreat_from_user"] > 0.1),
-    "pointing": lambda f: (f["reach_toward_user"] > 0.04) & (f["peak_tip_speed"] < 1.0),
-    "celebrating": lambda f: (f["vertical_reversals"] >= 3) & (f["peak_tip_speed"] > 1.0),
-    "resting": lambda f: (f["curvature_max"] < 0.6) & (f["peak_tip_speed"] < 0.6),
-    "offering": lambda f: (f["min_user_distance"] < 0.12) & (f["reach_toward_user"] > 0.15),
+    "greeting": lambda f, z: _reach(f, z) & (f["lateral_reversals"] >= 1) & _respectful(f, z),
+    "farewell": lambda f, z: (f["lateral_reversals"] >= 1) & (f["max_tip_height"] > 0.55),
+    "comforting": lambda f, z: _near(f, z) & _reach(f, z),
+    "attentive_listening": lambda f, z: _reach(f, z) & _respectful(f, z),
+    "curiosity": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.2),
+    "embracing": lambda f, z: (f["curvature_max"] > 1.4) & _near(f, z) & _reach(f, z),
+    "withdrawal": lambda f, z: (f["retreat_from_user"] > np.take((-0.01, 0.02, 0.05, 0.08), z))
+                               & (f["reach_toward_user"] < 0.05),
+    "coiling": lambda f, z: (f["curvature_max"] > 1.2) & (f["reach_toward_user"] < 0.08),
+    "playful_swing": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.3),
+    "nodding": lambda f, z: (f["vertical_reversals"] >= 2) & _respectful(f, z),
+    "refusing": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.25) & _respectful(f, z),
+    "beckoning": lambda f, z: (f["vertical_reversals"] >= 2) & (f["retreat_from_user"] > 0.0),
+    "pointing": lambda f, z: _reach(f, z) & (f["peak_tip_speed"] < 3.5) & _respectful(f, z),
+    "celebrating": lambda f, z: (f["vertical_reversals"] >= 3) & (f["peak_tip_speed"] > 1.0),
+    "resting": lambda f, z: (f["peak_tip_speed"] < 2.0) & (f["min_user_distance"] > 0.10),
+    "offering": lambda f, z: _near(f, z) & _reach(f, z),
 }
 assert set(RULES) == set(INTENTS)
 
 CHECKS = ("bounds", "smooth", "feasible", "semantic")
 
 
-def screen(raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool = True) -> dict[str, np.ndarray]:
+def screen(raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool = True,
+           intensity: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Checks for reconstructions ``raw`` ``(B, T, N_u)`` and their gated form ``u``; intents ``(B,)``.
 
     Returns a dict of boolean ``(B,)`` arrays, one per check in :data:`CHECKS`, plus ``"accepted"``.
     ``simulate=False`` runs only the checks that need no trunk model (bounds and slew, smoothness), for
-    any number of tendons N_u; the simulated checks need the built-in 4-tendon trunk.
+    any number of tendons N_u; the simulated checks need the built-in 4-tendon trunk. ``intensity``
+    ``(B,)`` grades the reach and proximity a rule asks for; without it the emphatic grade applies.
     """
     bounds = (raw.min(axis=(1, 2)) >= -MAX_OVERSHOOT) & (raw.max(axis=(1, 2)) <= 1 + MAX_OVERSHOOT)
     bounds &= np.array([safety.is_safe(x) for x in u])
@@ -59,7 +81,8 @@ def screen(raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool
     for m, name in enumerate(INTENTS):
         sel = intent == m
         if sel.any():
-            semantic[sel] = RULES[name]({k: v[sel] for k, v in feats.items()})
+            z = np.full(int(sel.sum()), 3) if intensity is None else np.asarray(intensity)[sel]
+            semantic[sel] = RULES[name]({k: v[sel] for k, v in feats.items()}, z)
     out = {"bounds": bounds, "smooth": smooth, "feasible": trunk.feasible(rollout), "semantic": semantic}
     out["accepted"] = np.logical_and.reduce([out[c] for c in CHECKS])
     return out
