@@ -16,11 +16,41 @@ DDPM_STEPS = 50  # diffusion steps; the ancestral sampler uses all of them (Tabl
 DATA_BOUND = 1.0  # targets are normalized to [-1, 1] (methods._encode); DDIM clips its x0 estimate to it
 
 
-def rf_loss(velocity, c, key):
-    """Eq. (rf_loss): E || v(c_lambda, lambda) - (c - eps) ||^2 for a batch ``c`` ``(B, D)``."""
+def _pi0_beta(key, shape):  # pi0: tau ~ Beta(1.5, 1) * 0.999 + 0.001 with tau = 1 noise, so lambda = 1 - tau
+    return 1.0 - (jax.random.beta(key, 1.5, 1.0, shape) * 0.999 + 0.001)
+
+
+# Flow-time distributions for training, ``(key, shape) -> lambda in (0, 1)`` (lambda = 0 noise, 1 data):
+# uniform (the paper); logit-normal sigmoid(N(0, 1)) (Esser et al., SD3), weighting the middle of the path;
+# Beta as in pi0, weighting the noisy end, where the velocity field is hardest to learn.
+TIME_SAMPLERS = {
+    "uniform": jax.random.uniform,
+    "logit_normal": lambda key, shape: jax.nn.sigmoid(jax.random.normal(key, shape)),
+    "beta": _pi0_beta,
+}
+
+
+def sample_flow_time(key, shape, time_sampler: str = "uniform") -> jax.Array:
+    """Flow times ``shape`` (e.g. ``(B,)``) drawn from :data:`TIME_SAMPLERS` ``[time_sampler]``."""
+    if time_sampler not in TIME_SAMPLERS:
+        raise ValueError(f"unknown time sampler {time_sampler!r}; valid: {', '.join(TIME_SAMPLERS)}")
+    return TIME_SAMPLERS[time_sampler](key, shape)
+
+
+def rf_loss(velocity, c, key, *, time_sampler: str = "uniform", noise=None):
+    """Eq. (rf_loss): E || v(c_lambda, lambda) - (c - eps) ||^2 for a batch ``c`` ``(B, D)``.
+
+    Args:
+      velocity: ``v(x (B, D), lambda (B,)) -> (B, D)``.
+      c: data ``(B, D)`` (lambda = 1).
+      key: draws eps (unless ``noise`` is given) and lambda.
+      time_sampler: one of :data:`TIME_SAMPLERS` (:func:`sample_flow_time`).
+      noise: coupled noise ``(B, D)`` (reflow: the eps each ``c`` was generated from); default a fresh draw.
+    Returns: the scalar loss.
+    """
     k_eps, k_lam = jax.random.split(key)
-    eps = jax.random.normal(k_eps, c.shape)
-    lam = jax.random.uniform(k_lam, c.shape[:1])
+    eps = jax.random.normal(k_eps, c.shape) if noise is None else noise
+    lam = sample_flow_time(k_lam, c.shape[:1], time_sampler)
     c_lam = (1.0 - lam[:, None]) * eps + lam[:, None] * c
     return jnp.mean((velocity(c_lam, lam) - (c - eps)) ** 2)
 

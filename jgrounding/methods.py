@@ -103,7 +103,7 @@ def training_data(method: str, split, intent_emb: np.ndarray, text_emb: np.ndarr
             "target": _encode(jnp.asarray(target, jnp.float32))}
 
 
-def _loss_fn(method: str, graphdef, data):
+def _loss_fn(method: str, graphdef, data, config: training.TrainConfig = training.TrainConfig()):
     s = spec(method)
 
     def loss(params, idx, key):
@@ -111,8 +111,15 @@ def _loss_fn(method: str, graphdef, data):
         cond, inten, y = data["cond"][idx], data["intensity"][idx], data["target"][idx]
         if s.generator == "cnn":
             return jnp.mean((model(cond, inten) - y) ** 2)
-        net = lambda x, t: model(x, t, cond, inten)  # noqa: E731
-        return flows.rf_loss(net, y, key) if s.generator == "rf" else flows.ddpm_loss(net, y, key)
+        keep = None
+        if config.condition_dropout:  # classifier-free guidance: learn the null condition too
+            key, k_drop = jax.random.split(key)
+            keep = jax.random.bernoulli(k_drop, 1.0 - config.condition_dropout, idx.shape).astype(jnp.float32)
+        net = lambda x, t: model(x, t, cond, inten, keep)  # noqa: E731
+        if s.generator == "rf":
+            noise = data["noise"][idx] if "noise" in data else None  # reflow: coupled (noise, sample) pairs
+            return flows.rf_loss(net, y, key, time_sampler=config.time_sampler, noise=noise)
+        return flows.ddpm_loss(net, y, key)
 
     return loss
 
@@ -138,13 +145,72 @@ def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainCon
     data = training_data(method, library.train, intent_emb, text_emb, num_controls)
     num_tendons = int(library.train.u.shape[-1])  # N_u from the data
     graphdef, params = init(method, seeds, num_controls, num_tendons)
-    step = training.make_step(_loss_fn(method, graphdef, data), int(data["target"].shape[0]), config)
+    _check_options(method, config)
+    step = training.make_step(_loss_fn(method, graphdef, data, config), int(data["target"].shape[0]), config)
     if initial_states is None:
         keys = jnp.stack([jax.random.fold_in(jax.random.key(int(s)), 1) for s in seeds])
         initial_states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
     states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
                                     on_chunk=on_chunk, mesh=mesh)
-    return Trained(method, graphdef, states.params, tuple(int(s) for s in seeds), num_controls, losses, num_tendons)
+    return Trained(method, graphdef, training.eval_params(states), tuple(int(s) for s in seeds), num_controls,
+                   losses, num_tendons)
+
+
+def _check_options(method: str, config: training.TrainConfig) -> None:
+    s = spec(method)
+    if config.condition_dropout and s.generator == "cnn":
+        raise ValueError(f"condition_dropout (classifier-free guidance) needs a flow or diffusion generator; "
+                         f"{method} is a deterministic regressor")
+    if config.time_sampler != "uniform" and s.generator != "rf":
+        raise ValueError(f"time_sampler {config.time_sampler!r} applies to rectified flow; {method} is not RF")
+
+
+def reflow(teacher: Trained, library, config: training.TrainConfig = training.TrainConfig(), *, intent_emb=None,
+           pairs_per_example: int = 64, teacher_steps: int = 50, progress: bool = True) -> Trained:
+    """2-rectified flow (Liu et al., "Flow straight and fast"): retrain each seed of an RF ``teacher`` on
+    coupled pairs (eps, x1 = ODE_teacher(eps | condition)) so that its paths straighten and few Euler
+    steps reach what many did.
+
+    Args:
+      teacher: a trained ``tuple_spline_rf`` (any seeds); every seed is reflowed from its own pairs and
+        initialized from its own parameters.
+      library: its ``train`` split gives the conditions (each repeated ``pairs_per_example`` times).
+      config: training of the reflowed model (``condition_dropout`` / ``time_sampler`` apply as usual).
+      teacher_steps: Euler steps S of the teacher's ODE.
+    Returns: a :class:`Trained` of the same method, seeds and P.
+    """
+    from jgrounding import semantics
+
+    if spec(teacher.method).generator != "rf":
+        raise ValueError(f"reflow needs a rectified-flow teacher; {teacher.method} is not RF")
+    _check_options(teacher.method, config)
+    intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb
+    base = training_data(teacher.method, library.train, intent_emb, None, teacher.num_controls)
+    cond = jnp.repeat(base["cond"], pairs_per_example, axis=0)
+    inten = jnp.repeat(base["intensity"], pairs_per_example, axis=0)
+    dim = base["target"].shape[-1]
+
+    @jax.jit
+    def teacher_pairs(params, key):
+        eps = jax.random.normal(key, (cond.shape[0], dim))
+        x1 = _flow(teacher.method, nnx.merge(teacher.graphdef, params), cond, inten, eps, key, sampler="euler",
+                   steps=teacher_steps, guidance=0.0)
+        return eps, x1
+
+    out, losses = [], []
+    for i, seed in enumerate(teacher.seeds):
+        k_pairs, k_train = jax.random.split(jax.random.fold_in(jax.random.key(seed), 2))
+        params = jax.tree.map(lambda x: x[i], teacher.params)
+        eps, x1 = teacher_pairs(params, k_pairs)
+        data = {"cond": cond, "intensity": inten, "target": x1, "noise": eps}
+        step = training.make_step(_loss_fn(teacher.method, teacher.graphdef, data, config), int(x1.shape[0]), config)
+        state = jax.tree.map(lambda x: x[None], training.init_state(params, k_train, config))
+        state, loss = training.train(state, step, config, desc=f"reflow seed {seed}", progress=progress)
+        out.append(training.eval_params(state))
+        losses.append(loss)
+    params = jax.tree.map(lambda *x: jnp.concatenate(x), *out)
+    return Trained(teacher.method, teacher.graphdef, params, teacher.seeds, teacher.num_controls,
+                   jnp.concatenate(losses), teacher.num_tendons)
 
 
 def restore(path, method: str | None = None) -> Trained:
@@ -167,8 +233,33 @@ def restore(path, method: str | None = None) -> Trained:
     return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons)
 
 
+def _flow(method: str, model, cond, intensity, eps, key, *, sampler: str, steps: int, guidance: float):
+    """Normalized flow/diffusion output ``(B, D)`` from noise ``eps (B, D)`` for conditions ``cond (B, 384)``.
+
+    ``guidance`` w: classifier-free guidance v = v_c + w (v_c - v_null) (w = 0: the conditional model
+    alone); the conditional and null rows go through the network as one batch.
+    """
+    b = cond.shape[0]
+    # What does not change across flow steps is computed once, before the sampler's loop: the
+    # condition's share of the first layer, and the time embedding's share for every step.
+    ctx = model.context(cond, intensity)
+    if guidance:
+        both = jnp.concatenate([ctx, model.null_context(b)])
+
+        def net(x, time_ctx):
+            v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
+            return v[:b] + guidance * (v[:b] - v[b:])
+    else:
+        net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)  # noqa: E731
+    if spec(method).generator == "rf":
+        return flows.rf_sample(net, eps, steps=steps, sampler=sampler, embed_time=model.time_context)
+    k2 = jax.random.fold_in(key, 1)
+    return flows.ddpm_sample(net, eps, k2, sampler="ancestral" if sampler == "euler" else sampler,
+                             sample_steps=steps, embed_time=model.time_context)
+
+
 def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
-               steps: int = 50, num_controls: int = 4, num_tendons: int = 4):
+               steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
     """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, N_u)``."""
     s = spec(method)
     model = nnx.merge(graphdef, params)
@@ -179,16 +270,7 @@ def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: 
         return safety.make_safe(u)
     dim = num_tendons * (num_controls if s.representation == "spline" else T)
     eps = jax.random.normal(key, (b, dim))
-    # What does not change across flow steps is computed once, before the sampler's loop: the
-    # condition's share of the first layer, and the time embedding's share for every step.
-    ctx = model.context(cond, intensity)
-    net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)  # noqa: E731
-    if s.generator == "rf":
-        x = flows.rf_sample(net, eps, steps=steps, sampler=sampler, embed_time=model.time_context)
-    else:
-        k2 = jax.random.fold_in(key, 1)
-        x = flows.ddpm_sample(net, eps, k2, sampler="ancestral" if sampler == "euler" else sampler,
-                              sample_steps=steps, embed_time=model.time_context)
+    x = _flow(method, model, cond, intensity, eps, key, sampler=sampler, steps=steps, guidance=guidance)
     y = _decode(x)
     u = splines.reconstruct(y.reshape(b, num_tendons, num_controls)) if s.representation == "spline" \
         else y.reshape(b, T, num_tendons)
@@ -196,7 +278,8 @@ def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: 
 
 
 def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num_samples: int = 30, *,
-             sampler: str = "euler", steps: int = 50, batch: int = 640, mesh=None) -> np.ndarray:
+             sampler: str = "euler", steps: int = 50, batch: int = 640, mesh=None,
+             guidance: float = 0.0) -> np.ndarray:
     """u ``(num_seeds, N, K, 150, 4)`` for conditions ``cond (N, 384)``, ``intensity (N,)``.
 
     ``mesh``: a :func:`jgrounding.distributed.make_mesh` mesh; the flattened (condition x sample)
@@ -207,7 +290,7 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
     cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), num_samples, axis=0)
     inten_k = jnp.repeat(jnp.asarray(intensity, jnp.int32), num_samples, axis=0)
     fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh,
-                      trained.num_tendons)
+                      trained.num_tendons, guidance)
     keys = jax.random.split(key, len(trained.seeds))
     params = trained.params
     if mesh is not None:
@@ -229,13 +312,13 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
 _GEN_CACHE: dict = {}
 
 
-def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_tendons: int = 4):
+def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_tendons: int = 4, guidance=0.0):
     """``jit(vmap over seeds(sample_one))``; with a mesh the batch axis is split over its devices."""
-    key = (method, id(graphdef), sampler, steps, num_controls, mesh, num_tendons)
+    key = (method, id(graphdef), sampler, steps, num_controls, mesh, num_tendons, float(guidance))
     if key not in _GEN_CACHE:
         def one(params, cond, inten, k):
             return sample_one(method, graphdef, params, cond, inten, k, sampler=sampler, steps=steps,
-                              num_controls=num_controls, num_tendons=num_tendons)
+                              num_controls=num_controls, num_tendons=num_tendons, guidance=guidance)
 
         fn = jax.vmap(one, in_axes=(0, None, None, 0))
         if mesh is None:
@@ -247,7 +330,8 @@ def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_
     return _GEN_CACHE[key]
 
 
-def latency_fn(trained: Trained, seed_index: int = 0, *, sampler: str = "euler", steps: int = 50):
+def latency_fn(trained: Trained, seed_index: int = 0, *, sampler: str = "euler", steps: int = 50,
+               guidance: float = 0.0):
     """Compiled single-trajectory grounding ``(cond (384,), intensity, key) -> u (150, 4)`` for timing."""
     params = jax.tree.map(lambda x: x[seed_index], trained.params)
 
@@ -255,18 +339,18 @@ def latency_fn(trained: Trained, seed_index: int = 0, *, sampler: str = "euler",
     def fn(cond, intensity, key):
         return sample_one(trained.method, trained.graphdef, params, cond[None], intensity[None], key,
                           sampler=sampler, steps=steps, num_controls=trained.num_controls,
-                          num_tendons=trained.num_tendons)[0]
+                          num_tendons=trained.num_tendons, guidance=guidance)[0]
 
     return fn
 
 
 def latency_ms(trained: Trained, cond, intensity, key, *, sampler: str = "euler", steps: int = 50,
-               reps: int = 200) -> float:
+               reps: int = 200, guidance: float = 0.0) -> float:
     """Median warm wall time (ms) of one single-trajectory grounding, tuple -> u (150, 4), spline
     reconstruction and safety gate included (the paper's Time), cycling through ``cond (N, 384)``,
     ``intensity (N,)``. Inputs and keys are placed on the device before the clock starts, so only the
     compiled call is timed (Table II's protocol: one trajectory at a time)."""
-    fn = latency_fn(trained, 0, sampler=sampler, steps=steps)
+    fn = latency_fn(trained, 0, sampler=sampler, steps=steps, guidance=guidance)
     n = len(cond)
     keys = jax.random.split(key, max(reps, n))
     calls = [(jnp.asarray(cond[i % n]), jnp.asarray(intensity[i % n], jnp.int32), keys[i]) for i in range(len(keys))]

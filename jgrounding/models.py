@@ -57,6 +57,11 @@ class VelocityMLP(nnx.Module):
         w = self.l1.kernel.value[dim + TIME_DIM:]
         return self.cond(text_emb, intensity) @ w + self.l1.bias.value
 
+    def null_context(self, batch: int):
+        """:meth:`context` of the null condition (all-zero condition vector, the classifier-free guidance
+        "unconditional" input trained by condition dropout) ``-> (batch, width)``."""
+        return jnp.broadcast_to(self.l1.bias.value, (batch, self.l1.out_features))
+
     def time_context(self, t):
         """The flow time's share of the first layer ``(n,) -> (n, width)``: a sampler computes it for all
         its steps at once, before its loop (the schedule is fixed)."""
@@ -71,8 +76,12 @@ class VelocityMLP(nnx.Module):
         h = nnx.silu(self.l3(h))
         return self.l4(h)
 
-    def __call__(self, x, t, text_emb, intensity):
-        h = jnp.concatenate([x, sinusoidal(t), self.cond(text_emb, intensity)], axis=-1)
+    def __call__(self, x, t, text_emb, intensity, keep=None):
+        """``keep (B,)`` in {0, 1}: 0 replaces the condition by the null condition (condition dropout)."""
+        cond = self.cond(text_emb, intensity)
+        if keep is not None:
+            cond = cond * keep[:, None]
+        h = jnp.concatenate([x, sinusoidal(t), cond], axis=-1)
         h = nnx.silu(self.l1(h))
         h = nnx.silu(self.l2(h))
         h = nnx.silu(self.l3(h))

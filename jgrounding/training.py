@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from jgrounding import distributed
+from jgrounding import distributed, flows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,6 +28,9 @@ class TrainConfig:
     learning_rate: float = 1e-3
     weight_decay: float = 1e-4
     chunk: int = 1_000  # steps per compiled chunk (progress / checkpoint granularity)
+    ema_decay: float = 0.0  # 0 = off; else the model is evaluated with an EMA of its parameters (warm-up below)
+    time_sampler: str = "uniform"  # flow-time distribution of the RF loss (flows.TIME_SAMPLERS)
+    condition_dropout: float = 0.0  # probability of training on the null condition (classifier-free guidance)
 
     def __post_init__(self):
         for name, low in (("steps", 0), ("batch_size", 1), ("chunk", 1)):
@@ -38,6 +41,13 @@ class TrainConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
                 raise ValueError(f"TrainConfig.{name} must be a finite number >= 0, got {value!r}")
+        for name in ("ema_decay", "condition_dropout"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < 1:
+                raise ValueError(f"TrainConfig.{name} must be a number in [0, 1), got {value!r}")
+        if self.time_sampler not in flows.TIME_SAMPLERS:
+            raise ValueError(f"TrainConfig.time_sampler must be one of {', '.join(flows.TIME_SAMPLERS)}, "
+                             f"got {self.time_sampler!r}")
 
 
 @jax.tree_util.register_dataclass
@@ -47,6 +57,7 @@ class TrainState:
     opt_state: Any
     step: jax.Array
     key: jax.Array
+    ema: Any = None  # EMA of params when TrainConfig.ema_decay > 0, else None (no leaves)
 
 
 def optimizer(config: TrainConfig) -> optax.GradientTransformation:
@@ -63,13 +74,25 @@ def make_step(loss_fn: Callable, num_examples: int, config: TrainConfig):
         loss, grads = jax.value_and_grad(loss_fn)(state.params, idx, k_loss)
         updates, opt_state = tx.update(grads, state.opt_state, state.params)
         params = optax.apply_updates(state.params, updates)
-        return TrainState(params, opt_state, state.step + 1, key), loss
+        ema = state.ema
+        if config.ema_decay:
+            # Warm-up (as in diffusers / timm): early on the average forgets the random initialization
+            # fast; the decay reaches its set value after ~10 / (1 - decay) steps.
+            d = jnp.minimum(config.ema_decay, (1.0 + state.step) / (10.0 + state.step))
+            ema = jax.tree.map(lambda e, p: d * e + (1.0 - d) * p, state.ema, params)
+        return TrainState(params, opt_state, state.step + 1, key, ema), loss
 
     return step
 
 
 def init_state(params, key, config: TrainConfig) -> TrainState:
-    return TrainState(params, optimizer(config).init(params), jnp.zeros((), jnp.int32), key)
+    ema = jax.tree.map(jnp.array, params) if config.ema_decay else None
+    return TrainState(params, optimizer(config).init(params), jnp.zeros((), jnp.int32), key, ema)
+
+
+def eval_params(state: TrainState):
+    """The parameters a trained model is evaluated and shipped with: the EMA when it was kept."""
+    return state.params if state.ema is None else state.ema
 
 
 def make_chunk(step, length: int, mesh=None):
