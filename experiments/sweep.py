@@ -5,6 +5,8 @@
 - ``steps``: RF (Euler) and DDPM (DDIM with S steps; ancestral at the trained 50) for S = 1, 2, 4, 8, 16, 50:
   success, diversity and single-trajectory time; reuses the ablation's checkpoints in runs/ablation.
 - ``controls``: Tuple + Spline + RF trained with P = 3..8 spline controls (fewer seeds): success, diversity.
+- ``training``: generator options each off or on (EMA, flow-time sampling, guidance, few-step reflow vs
+  DDPM/DDIM), 5 seeds; chooses the shipped default (experiments/sweep_training.py).
 Each writes results/sweep_<name>.{md,json} and a PNG.
 """
 from __future__ import annotations
@@ -23,7 +25,7 @@ from jgrounding.export import write_atomic
 from jgrounding.plotting import plt, save
 from jgrounding.training import TrainConfig
 
-SWEEPS = ("tau_rms", "steps", "controls")
+SWEEPS = ("tau_rms", "steps", "controls", "training")
 RESULTS = Path("results")
 
 
@@ -140,10 +142,18 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("name", choices=SWEEPS)
     p.add_argument("--k-div", type=int, default=30)
-    p.add_argument("--seeds", type=int, default=3, help="seeds for `controls` (trains 6 models per seed)")
-    p.add_argument("--steps", type=int, default=10_000, help="training steps for `controls`")
+    p.add_argument("--seeds", type=int, help="seeds for `controls` (default 3; trains 6 models per seed) and "
+                   "`training` (default 5)")
+    p.add_argument("--steps", type=int, default=10_000, help="training steps for `controls` and `training`")
+    p.add_argument("--reflow-pairs", type=int, default=64, help="`training`: teacher pairs per training example")
     args = p.parse_args(argv)
-    res = {"tau_rms": sweep_tau, "steps": sweep_steps, "controls": sweep_controls}[args.name](args)
+    if args.seeds is None:
+        args.seeds = 5 if args.name == "training" else 3
+    args.out = RESULTS
+    from experiments import sweep_training
+
+    res = {"tau_rms": sweep_tau, "steps": sweep_steps, "controls": sweep_controls,
+           "training": sweep_training.run}[args.name](args)
     write_atomic(RESULTS / f"sweep_{args.name}.md", res["markdown"] + "\n")
     write_atomic(RESULTS / f"sweep_{args.name}.json", json.dumps({k: v for k, v in res.items() if k != "markdown"},
                                                                   indent=1, default=float))

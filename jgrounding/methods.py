@@ -166,7 +166,8 @@ def _check_options(method: str, config: training.TrainConfig) -> None:
 
 
 def reflow(teacher: Trained, library, config: training.TrainConfig = training.TrainConfig(), *, intent_emb=None,
-           pairs_per_example: int = 64, teacher_steps: int = 50, progress: bool = True) -> Trained:
+           pairs_per_example: int = 64, teacher_steps: int = 50, teacher_guidance: float = 0.0,
+           progress: bool = True) -> Trained:
     """2-rectified flow (Liu et al., "Flow straight and fast"): retrain each seed of an RF ``teacher`` on
     coupled pairs (eps, x1 = ODE_teacher(eps | condition)) so that its paths straighten and few Euler
     steps reach what many did.
@@ -177,6 +178,8 @@ def reflow(teacher: Trained, library, config: training.TrainConfig = training.Tr
       library: its ``train`` split gives the conditions (each repeated ``pairs_per_example`` times).
       config: training of the reflowed model (``condition_dropout`` / ``time_sampler`` apply as usual).
       teacher_steps: Euler steps S of the teacher's ODE.
+      teacher_guidance: the teacher's guidance w; the reflowed model learns the guided field, so it is
+        sampled with w = 0 (one network evaluation per step instead of two).
     Returns: a :class:`Trained` of the same method, seeds and P.
     """
     from jgrounding import semantics
@@ -194,7 +197,7 @@ def reflow(teacher: Trained, library, config: training.TrainConfig = training.Tr
     def teacher_pairs(params, key):
         eps = jax.random.normal(key, (cond.shape[0], dim))
         x1 = _flow(teacher.method, nnx.merge(teacher.graphdef, params), cond, inten, eps, key, sampler="euler",
-                   steps=teacher_steps, guidance=0.0)
+                   steps=teacher_steps, guidance=teacher_guidance)
         return eps, x1
 
     out, losses = [], []
