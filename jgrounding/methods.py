@@ -261,23 +261,34 @@ def _flow(method: str, model, cond, intensity, eps, key, *, sampler: str, steps:
                              sample_steps=steps, embed_time=model.time_context)
 
 
-def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
-               steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
-    """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, N_u)``."""
+def actuation(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
+              steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
+    """Ungated actuation for a batch of conditions (the generator and the spline reconstruction).
+
+    Args:
+      cond: condition embeddings ``(B, 384)``; intensity: ``(B,)`` int32; key: one key for the batch.
+    Returns:
+      u ``(B, 150, N_u)``, not yet through the safety gate (:func:`sample_one` and the public sampler gate it).
+    """
     s = spec(method)
     model = nnx.merge(graphdef, params)
     b = cond.shape[0]
     if s.generator == "cnn":
         y = _decode(model(cond, intensity))  # (B, L, 4)
-        u = splines.reconstruct(jnp.swapaxes(y, -1, -2)) if s.representation == "spline" else y
-        return safety.make_safe(u)
+        return splines.reconstruct(jnp.swapaxes(y, -1, -2)) if s.representation == "spline" else y
     dim = num_tendons * (num_controls if s.representation == "spline" else T)
     eps = jax.random.normal(key, (b, dim))
     x = _flow(method, model, cond, intensity, eps, key, sampler=sampler, steps=steps, guidance=guidance)
     y = _decode(x)
-    u = splines.reconstruct(y.reshape(b, num_tendons, num_controls)) if s.representation == "spline" \
+    return splines.reconstruct(y.reshape(b, num_tendons, num_controls)) if s.representation == "spline" \
         else y.reshape(b, T, num_tendons)
-    return safety.make_safe(u)
+
+
+def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
+               steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
+    """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, N_u)``."""
+    return safety.make_safe(actuation(method, graphdef, params, cond, intensity, key, sampler=sampler, steps=steps,
+                                      num_controls=num_controls, num_tendons=num_tendons, guidance=guidance))
 
 
 def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num_samples: int = 30, *,

@@ -1,7 +1,8 @@
 """The one safety layer between every model and the outside world (this drives a robot near people).
 
-Every actuation trajectory that leaves the library passes through :func:`emit` (or, inside compiled
-code, :func:`make_safe`), and nowhere else clamps. The guarantees:
+Every actuation trajectory that leaves the library passes through :func:`emit`, or through a compiled
+function built by :func:`gated` (:func:`make_safe` inside the compiled code, then the host check of
+:func:`release`), and nowhere else clamps. The guarantees:
 
 1. **Bounds.** Each tendon pull is inside ``[ACTUATION_MIN, ACTUATION_MAX] = [0, 1]`` (0 = slack,
    1 = largest safe pull; SPEC §3), whatever the model produced.
@@ -137,6 +138,37 @@ def emit(u, *, num_channels: int = 4, current=None) -> np.ndarray:
 
 _make_safe_jit = jax.jit(make_safe)
 _make_safe_from_jit = jax.jit(lambda u, current: make_safe(u, MAX_SLEW, current))
+
+
+def release(u, *, num_channels: int | None = None) -> np.ndarray:
+    """The host half of a :func:`gated` function's gate: a fresh float32 numpy copy of ``(..., T, N_u)``.
+
+    The bounds and the slew limit were applied inside the compiled function; this refuses
+    (:class:`UnsafeActuationError`) NaN/Inf and a wrong shape (``num_channels``: expected N_u), as :func:`emit` does.
+    """
+    arr = np.array(u, dtype=np.float32)
+    if arr.ndim < 2 or arr.shape[-2] < 1 or (num_channels is not None and arr.shape[-1] != num_channels):
+        raise UnsafeActuationError(f"actuation must have shape (..., T, {num_channels or 'N_u'}), got {arr.shape}")
+    check_finite(arr)
+    return arr
+
+
+def gated(fn):
+    """``jit(make_safe(fn(*args)))`` whose results leave only through :func:`release`.
+
+    Args:
+      fn: a pure function returning actuation ``(..., T, N_u)``.
+    Returns:
+      ``call(*args) -> np.ndarray``: the gated float32 result (inside the bounds, slew-limited, finite or
+      refused). ``call.compiled`` is the jitted function (for lowering, or timing the compiled core).
+    """
+    compiled = jax.jit(lambda *args: make_safe(fn(*args)))
+
+    def call(*args) -> np.ndarray:
+        return release(compiled(*args))
+
+    call.compiled = compiled
+    return call
 
 
 def is_safe(u, max_slew: float = MAX_SLEW, atol: float = 1e-6, current=None) -> bool:

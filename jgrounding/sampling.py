@@ -1,13 +1,19 @@
-"""The public sampler: ``jg.sample(key, intent, intensity, num_samples=1)`` -> ``(150, 4)`` / ``(K, 150, 4)``.
+"""The public sampler: ``jg.sample(key, intent, intensity, num_samples=1)``.
 
-Loads the shipped pretrained Tuple + Spline + RF checkpoint (``assets/checkpoints/tuple_spline_rf``)
-once per process, compiles one sampler per (sampler, S, K-bucket), and returns numpy float32
-trajectories through the one safety gate (:func:`jgrounding.safety.emit`): inside [0, 1], slew-limited,
-never NaN. Deterministic for a key.
+One tuple gives ``(150, 4)`` (``num_samples == 1``) or ``(K, 150, 4)``; sequences of N tuples give
+``(N, K, 150, 4)``. Loads the shipped pretrained Tuple + Spline + RF checkpoint
+(``assets/checkpoints/tuple_spline_rf``) once per process. The parameters of one seed and the intent
+embeddings live on the device as constants of the compiled program (no seed axis: a size-1 seed vmap
+turns every matmul into a batched dot that XLA's CPU backend runs ~10x slower); one program is
+compiled per (sampler, steps, batch bucket) and never traced again. Outputs pass the one safety gate
+(:func:`jgrounding.safety.gated`): inside [0, 1], slew-limited, never NaN. Trajectory ``r`` of a call
+(tuple-major, ``r = n * K + k``) draws its noise from ``fold_in(key, r)``, so results are deterministic
+per key and do not depend on the batch bucket.
 """
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import functools
 from pathlib import Path
@@ -20,44 +26,151 @@ from jgrounding import flows, methods, safety
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "checkpoints" / "tuple_spline_rf"
-MAX_SAMPLES = 4096
-_K_BUCKETS = (1, 8, 32, 128, 512, 4096)
+MAX_SAMPLES = 4096  # samples per tuple
+MAX_TRAJECTORIES = 1 << 18  # N x K per call (~630 MB of float32 output)
+BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256, 640)  # compiled batch sizes; larger calls run chunks of 640
+DEFAULT_SAMPLER = {"rf": "euler", "ddpm": "ancestral", "cnn": "none"}
+SAMPLERS = {"rf": flows.SAMPLERS, "ddpm": flows.DDPM_SAMPLERS, "cnn": ("none",)}
+# (checkpoint, sampler, steps, bucket) -> times traced; a test checks repeated calls trace once.
+TRACES: collections.Counter = collections.Counter()
 
 
-@functools.lru_cache(maxsize=4)
-def load(checkpoint: str | None = None):
-    """(Trained for one seed, intent embeddings ``(16, 384)``) from a checkpoint directory (cached).
+class Model:
+    """A restored generator ready to sample: one seed's parameters and the intent embeddings on the device.
 
-    Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
-    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.methods.restore`), and one whose
-    model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
+    ``sample`` is what :func:`sample` runs for a checkpoint; programs are compiled once per
+    (sampler, steps, batch bucket).
     """
-    from jgrounding import semantics
 
-    if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
-        raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint).__name__}")
-    path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
-    check_library(path)
-    trained = methods.restore(path)
-    if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
-        trained = dataclasses.replace(trained, params=jax.tree.map(lambda x: x[:1], trained.params),
-                                      seeds=trained.seeds[:1])
-    intent_emb = semantics.intent_embeddings()
-    _self_test(path, trained, intent_emb)
-    return trained, intent_emb
+    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None):
+        if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
+            trained = dataclasses.replace(trained, params=jax.tree.map(lambda x: x[:1], trained.params),
+                                          seeds=trained.seeds[:1])
+        self.trained = trained
+        self.covered = None if covered is None else frozenset(covered)  # tuples of an imported library
+        self.intent_emb = np.asarray(intent_emb, np.float32)
+        self.name = name
+        self.generator = methods.spec(trained.method).generator
+        self._params = jax.device_put(jax.tree.map(lambda x: x[0], trained.params))
+        self._emb = jax.device_put(self.intent_emb)
+        self._programs: dict = {}
+        self._single: dict = {}  # (intent, intensity) -> device index arrays of a single-tuple call
+        self._zero = jax.device_put(np.int32(0))
+
+    def program(self, sampler: str, steps: int, bucket: int):
+        """Gated ``(intent (B,), intensity (B,), first (), key) -> u (B, 150, N_u)`` float32 numpy, B = bucket;
+        row ``i`` draws its noise from ``fold_in(key, first + i)``."""
+        cache_key = (sampler, steps, bucket)
+        if cache_key not in self._programs:
+            tr, params, emb = self.trained, self._params, self._emb
+
+            def row(intent, intensity, key):  # one trajectory; params and embeddings are constants
+                return methods.actuation(tr.method, tr.graphdef, params, emb[intent][None], intensity[None], key,
+                                         sampler=sampler, steps=steps, num_controls=tr.num_controls,
+                                         num_tendons=tr.num_tendons)[0]
+
+            def run(intent, intensity, first, key):
+                TRACES[(self.name, *cache_key)] += 1  # Python side effect: counts traces, not calls
+                keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(first + jnp.arange(bucket, dtype=jnp.int32))
+                return jax.vmap(row)(intent, intensity, keys)
+
+            self._programs[cache_key] = safety.gated(run)
+        return self._programs[cache_key]
+
+    def _check(self, num_samples, sampler, steps) -> tuple[str, int]:
+        if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
+                or not 1 <= num_samples <= MAX_SAMPLES:
+            raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
+        sampler = DEFAULT_SAMPLER[self.generator] if sampler is None else sampler
+        valid = SAMPLERS[self.generator]
+        if not isinstance(sampler, str) or sampler not in valid:
+            raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(valid)}")
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 1000:
+            raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
+        return sampler, int(steps) if self.generator != "cnn" else 1
+
+    def sample(self, key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None,
+               steps: int = 50) -> np.ndarray:
+        """:func:`sample` for this model (same arguments, shapes and errors)."""
+        sampler, steps = self._check(num_samples, sampler, steps)
+        key = _as_key(key)
+        ms, zs = _sequence(intent), _sequence(intensity)
+        if ms is None and zs is None:
+            m, z = _intent(intent), _intensity(intensity)
+            if num_samples == 1:  # the latency path: cached device inputs, one dispatch
+                args = self._single.get((m, z))
+                if args is None:
+                    self._check_covered([m], [z])
+                    args = self._single[(m, z)] = jax.device_put((np.array([m], np.int32), np.array([z], np.int32)))
+                return self.program(sampler, steps, 1)(*args, self._zero, key)[0]
+            return self._run(key, np.array([m], np.int32), np.array([z], np.int32), num_samples, sampler, steps)[0]
+        m, z = _indices(ms, zs, intent, intensity)
+        return self._run(key, m, z, num_samples, sampler, steps)
+
+    def _check_covered(self, ms, zs) -> None:
+        if self.covered is None:
+            return
+        for m, z in zip(ms, zs):
+            if (int(m), int(z)) not in self.covered:
+                names = ", ".join(f"{INTENTS[a]}/{INTENSITIES[b]}" for a, b in sorted(self.covered))
+                raise ValueError(f"checkpoint {self.name} was trained on a library without ({INTENTS[m]}, "
+                                 f"{INTENSITIES[z]}); its tuples: {names}")
+
+    def _run(self, key, m, z, k, sampler, steps) -> np.ndarray:
+        """``(N, K, 150, N_u)`` for index arrays ``m, z (N,)``, in chunks of at most the largest bucket."""
+        self._check_covered(m, z)
+        total = len(m) * k
+        if total > MAX_TRAJECTORIES:
+            raise ValueError(f"{len(m)} tuples x {k} samples = {total} trajectories; at most {MAX_TRAJECTORIES} per call")
+        rows_m, rows_z = np.repeat(m, k), np.repeat(z, k)
+        n_u = self.trained.num_tendons
+        out = np.empty((total, methods.T, n_u), np.float32)
+        chunk = BUCKETS[-1]
+        for start in range(0, total, chunk):
+            n = min(chunk, total - start)
+            bucket = next(b for b in BUCKETS if b >= n)
+            pad = bucket - n
+            cm, cz = np.pad(rows_m[start:start + n], (0, pad)), np.pad(rows_z[start:start + n], (0, pad))
+            out[start:start + n] = self.program(sampler, steps, bucket)(cm, cz, np.int32(start), key)[:n]
+        return out.reshape(len(m), k, methods.T, n_u)
 
 
-def _self_test(path: Path, trained, intent_emb) -> None:
-    """Sample tuple (0, 0) once with the default sampler (the executable the first ``sample`` reuses)."""
-    fn = methods._generate_fn(trained.method, trained.graphdef, "euler", 50, trained.num_controls,
-                              num_tendons=trained.num_tendons)
-    u = np.asarray(fn(trained.params, jnp.asarray(intent_emb[:1]), jnp.zeros((1,), jnp.int32),
-                      jax.random.key(0)[None]))
-    shape = (1, 1, methods.T, trained.num_tendons)
-    if u.shape != shape or not np.all(np.isfinite(u)):
-        bad = "non-finite values" if u.shape == shape else f"shape {u.shape}"
-        raise ValueError(f"checkpoint {path} failed its load self-test: a sample of "
-                         f"({INTENTS[0]}, {INTENSITIES[0]}) has {bad}; refusing to use it")
+def _sequence(values) -> list | None:
+    """The elements of a list, tuple or 1-d array of tuples' names/indices; None for anything else (a single
+    value, validated by the vocabulary)."""
+    if isinstance(values, (list, tuple)):
+        return list(values)
+    if isinstance(values, (np.ndarray, jax.Array)) and values.ndim == 1:
+        return np.asarray(values).tolist()
+    return None
+
+
+def _lookup(index_fn):
+    cached = functools.lru_cache(maxsize=4096, typed=True)(index_fn)
+
+    def index(value) -> int:
+        try:
+            return cached(value)
+        except TypeError:  # unhashable: the uncached call raises the vocabulary's own message
+            return index_fn(value)
+
+    return index
+
+
+_intent, _intensity = _lookup(intent_index), _lookup(intensity_index)
+
+
+def _indices(ms: list | None, zs: list | None, intent, intensity) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays ``(N,)`` for sequences of tuples; a single value is repeated to the other's length."""
+    if ms is not None and zs is not None and len(ms) != len(zs):
+        raise ValueError(f"intents and intensities must have the same length, got {len(ms)} and {len(zs)}")
+    n = len(ms) if ms is not None else len(zs)
+    if n == 0:
+        raise ValueError(f"intents and intensities must name at least one tuple, got empty sequences; "
+                         f"valid intents: {', '.join(INTENTS)}; valid intensities: {', '.join(INTENSITIES)}")
+    m = np.array([_intent(v) for v in ms] if ms is not None else [_intent(intent)] * n, np.int32)
+    z = np.array([_intensity(v) for v in zs] if zs is not None else [_intensity(intensity)] * n, np.int32)
+    return m, z
 
 
 def check_library(path: Path) -> None:
@@ -97,46 +210,60 @@ def _as_key(key):
     raise TypeError(f"key must be {accepted}; got {got}")
 
 
-def _compiled(checkpoint, sampler, steps):
-    trained, _ = load(checkpoint)
-    # The cached executable itself (not a jit around it), so the load self-test warms the default one;
-    # it compiles once per K bucket.
-    return methods._generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls,
-                              num_tendons=trained.num_tendons)
-
-
-def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str = "euler", steps: int = 50,
-           checkpoint: str | None = None) -> np.ndarray:
-    """Sample tendon actuation for an (intent, intensity) tuple (names or indices).
-
-    Returns ``(150, N_u)`` when ``num_samples == 1`` and ``(num_samples, 150, N_u)`` otherwise, float32,
-    inside [0, 1]; N_u = 4 for the shipped checkpoint, else the number of tendons of the checkpoint's library.
-    A ``checkpoint`` trained on a library without this tuple (an imported library covers only the tuples
-    recorded) is refused with a ``ValueError`` listing its tuples. ``sampler``: euler | midpoint | rk4; ``steps``: S Euler steps (1..1000).
-    """
-    m, z = intent_index(intent), intensity_index(intensity)
-    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
-            or not 1 <= num_samples <= MAX_SAMPLES:
-        raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
-    if sampler not in flows.SAMPLERS:
-        raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(flows.SAMPLERS)}")
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 1000:
-        raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
-    key = _as_key(key)
-    trained, intent_emb = load(checkpoint)
-    covered = _covered(checkpoint)
-    if covered is not None and (m, z) not in covered:
-        names = ", ".join(f"{INTENTS[a]}/{INTENSITIES[b]}" for a, b in covered)
-        raise ValueError(f"checkpoint {checkpoint} was trained on a library without ({INTENTS[m]}, {INTENSITIES[z]}); "
-                         f"its tuples: {names}")
-    k = next(b for b in _K_BUCKETS if b >= num_samples)
-    fn = _compiled(checkpoint, sampler, int(steps))
-    cond = jnp.broadcast_to(jnp.asarray(intent_emb[m]), (k, intent_emb.shape[1]))
-    u = fn(trained.params, cond, jnp.full((k,), z, jnp.int32), key[None])[0, :num_samples]
-    u = safety.emit(u, num_channels=trained.num_tendons)
-    return u[0] if num_samples == 1 else u
-
-
 @functools.lru_cache(maxsize=4)
-def _covered(checkpoint):
-    return trained_tuples(checkpoint)
+def model(checkpoint: str | Path | None = None) -> Model:
+    """The :class:`Model` of a checkpoint directory (default: the shipped RF), restored once per process.
+
+    Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
+    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.methods.restore`), and one whose
+    model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
+    An ablation checkpoint (several seeds) samples with its first seed.
+    """
+    from jgrounding import semantics
+
+    if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
+        raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint).__name__}")
+    path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
+    check_library(path)
+    trained = methods.restore(path)
+    loaded = Model(trained, semantics.intent_embeddings(), name=str(path), covered=trained_tuples(path))
+    m, z = min(loaded.covered) if loaded.covered else (0, 0)
+    try:  # the self-test compiles the executable the first default ``sample`` call reuses
+        u = loaded.sample(jax.random.key(0), m, z)
+    except safety.UnsafeActuationError as err:
+        u = err
+    if not isinstance(u, np.ndarray) or u.shape != (methods.T, trained.num_tendons):
+        bad = f"shape {u.shape}" if isinstance(u, np.ndarray) else f"non-finite values ({u})"
+        raise ValueError(f"checkpoint {path} failed its load self-test: a sample of "
+                         f"({INTENTS[m]}, {INTENSITIES[z]}) has {bad}; refusing to use it")
+    return loaded
+
+
+def load(checkpoint: str | Path | None = None):
+    """(Trained, intent embeddings ``(16, 384)``) of :func:`model` (cached; same refusals)."""
+    loaded = model(checkpoint)
+    return loaded.trained, loaded.intent_emb
+
+
+load.cache_clear = model.cache_clear  # forgets the loaded models (a test's "new process")
+
+
+def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None, steps: int = 50,
+           checkpoint: str | Path | None = None) -> np.ndarray:
+    """Sample tendon actuation for (intent, intensity) tuples (names or indices).
+
+    Args:
+      key: ``jax.random.key(seed)`` or a raw ``jax.random.PRNGKey(seed)``; results are deterministic per key.
+      intent, intensity: one name or index each, or sequences of N of them (a single value is repeated).
+      num_samples: K samples per tuple, 1..4096.
+      sampler: ``euler`` (default) | ``midpoint`` | ``rk4`` for a rectified flow; ``ancestral`` | ``ddim``
+        for a DDPM checkpoint. steps: S sampler steps, 1..1000.
+      checkpoint: a checkpoint directory (default: the shipped Tuple + Spline + RF).
+    Returns:
+      float32 actuation inside [0, 1]: ``(150, N_u)`` for one tuple and ``num_samples == 1``,
+      ``(K, 150, N_u)`` for one tuple, ``(N, K, 150, N_u)`` for sequences; N_u = 4 for the shipped
+      checkpoint, else the number of tendons of the checkpoint's library. A ``checkpoint`` trained on a
+      library without a requested tuple (an imported library covers only the tuples recorded) is refused
+      with a ``ValueError`` listing its tuples.
+    """
+    return model(checkpoint).sample(key, intent, intensity, num_samples, sampler=sampler, steps=steps)

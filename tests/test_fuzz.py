@@ -154,16 +154,22 @@ def _not_a(names):
 
 JUNK = (st.none() | st.floats(allow_nan=True) | st.binary(max_size=4) | st.lists(st.integers(), max_size=2)
         | st.booleans() | st.dictionaries(st.text(max_size=2), st.integers(), max_size=1))
+def _not_indices(n):  # a non-empty list of valid indices is a valid sequence of tuples
+    return lambda v: not (isinstance(v, list) and v and all(0 <= i < n for i in v))
+
+
 BAD = {
-    "intent": (st.text(max_size=30).filter(_not_a(INTENTS)) | st.integers().filter(lambda i: not 0 <= i < 16) | JUNK,
+    "intent": (st.text(max_size=30).filter(_not_a(INTENTS)) | st.integers().filter(lambda i: not 0 <= i < 16)
+               | JUNK.filter(_not_indices(16)),
                "greeting, farewell"),
     "intensity": (st.text(max_size=30).filter(_not_a(INTENSITIES)) | st.integers().filter(lambda i: not 0 <= i < 4)
-                  | JUNK, "subtle, moderate, pronounced, emphatic"),
+                  | JUNK.filter(_not_indices(4)), "subtle, moderate, pronounced, emphatic"),
     "num_samples": (st.integers().filter(lambda k: not 1 <= k <= sampling.MAX_SAMPLES) | st.text(max_size=3) | JUNK
                     | st.floats(1, 8), f"1..{sampling.MAX_SAMPLES}"),
     "steps": (st.integers().filter(lambda s: not 1 <= s <= 1000) | st.text(max_size=3) | JUNK | st.floats(1, 50),
               "1..1000"),
-    "sampler": (st.text(max_size=10).filter(lambda s: s not in flows.SAMPLERS) | JUNK, "euler, midpoint, rk4"),
+    "sampler": (st.text(max_size=10).filter(lambda s: s not in flows.SAMPLERS)
+                | JUNK.filter(lambda v: v is not None), "euler, midpoint, rk4"),  # None: the default sampler
     "key": (st.integers() | st.floats() | st.text(max_size=5) | st.none() | st.binary(max_size=8)
             | st.sampled_from([np.zeros(2, np.int32), np.zeros(3, np.uint32), np.zeros((2, 2), np.uint32),
                                np.zeros(2, np.float32), jnp.zeros(2, jnp.int32)])

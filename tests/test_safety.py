@@ -76,3 +76,16 @@ def test_batched_current_and_invalid_current():
             safety.emit(u, current=bad)
     with pytest.raises(safety.UnsafeActuationError, match="NaN"):
         safety.emit(u, current=np.array([0, np.nan, 0, 0]))
+
+
+def test_a_gated_function_is_clamped_slew_limited_and_refuses_non_finite():
+    import jax.numpy as jnp
+
+    fn = safety.gated(lambda scale: scale * jnp.ones((2, 150, 4)).at[:, :75].set(-1.0))
+    out = fn(jnp.float32(3.0))
+    assert isinstance(out, np.ndarray) and out.dtype == np.float32 and out.shape == (2, 150, 4)
+    assert safety.is_safe(out) and out[0, 0, 0] == 0.0 and out[0, -1, 0] == pytest.approx(1.0)
+    assert out[0, 75, 0] == pytest.approx(safety.MAX_SLEW)  # slewing up from 0, not jumping to 1
+    out[0, 0, 0] = 0.5  # a fresh, writable copy
+    with pytest.raises(safety.UnsafeActuationError, match="non-finite"):
+        fn(jnp.float32(jnp.nan))

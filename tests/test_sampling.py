@@ -1,0 +1,69 @@
+"""The public sampler's fast path (issue #14): batched tuples, determinism, bucket independence, errors
+and no re-tracing."""
+import jax
+import numpy as np
+import pytest
+
+import jgrounding as jg
+from jgrounding import safety, sampling
+
+
+def test_sequences_of_tuples_give_n_k_trajectories():
+    key = jax.random.key(4)
+    U = jg.sample(key, ["greeting", 9, "coiling"], ["subtle", "moderate", 3], num_samples=5, steps=4)
+    assert U.shape == (3, 5, 150, 4) and U.dtype == np.float32 and safety.is_safe(U)
+    np.testing.assert_array_equal(U, jg.sample(key, ["greeting", 9, "coiling"], ["subtle", "moderate", 3],
+                                               num_samples=5, steps=4))
+    assert not np.array_equal(U, jg.sample(jax.random.key(5), ["greeting", 9, "coiling"],
+                                           ["subtle", "moderate", 3], num_samples=5, steps=4))
+    # the first tuple's samples are those of the single-tuple call with the same key
+    np.testing.assert_allclose(U[0], jg.sample(key, "greeting", "subtle", num_samples=5, steps=4), atol=1e-5)
+
+
+def test_a_single_value_is_repeated_against_a_sequence():
+    key = jax.random.key(0)
+    a = jg.sample(key, np.arange(4), "emphatic", num_samples=2, steps=2)
+    b = jg.sample(key, [0, 1, 2, 3], ["emphatic"] * 4, num_samples=2, steps=2)
+    assert a.shape == (4, 2, 150, 4)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_samples_do_not_depend_on_the_batch_bucket_or_chunking():
+    key = jax.random.key(7)
+    big = jg.sample(key, "nodding", "pronounced", num_samples=700, steps=2)  # chunks of 640 + 60
+    assert big.shape == (700, 150, 4) and safety.is_safe(big)
+    np.testing.assert_allclose(big[:3], jg.sample(key, "nodding", "pronounced", num_samples=3, steps=2), atol=1e-5)
+    np.testing.assert_allclose(big[0], jg.sample(key, "nodding", "pronounced", steps=2), atol=1e-5)
+    assert len({float(np.abs(big[i] - big[0]).max()) for i in (1, 640, 699)}) == 3  # rows differ
+
+
+@pytest.mark.parametrize("intents, intensities, exc, match", [
+    (["greeting", "dance"], ["subtle", "subtle"], ValueError, "unknown intent 'dance'; valid intents: greeting"),
+    (["greeting"], ["subtle", "loud"], ValueError, "same length"),
+    ([0, 1], ["subtle", "extreme"], ValueError, "valid intensit.*: subtle"),
+    ([], [], ValueError, "at least one tuple"),
+    ({"a": 1}, "subtle", ValueError, "valid: greeting"),
+    ([], [], ValueError, "valid intents: greeting"),
+    ([[0, 1]], "subtle", ValueError, "greeting"),
+    ([16], "subtle", ValueError, "out of range 0..15"),
+])
+def test_sequences_are_validated_with_the_vocabulary_messages(intents, intensities, exc, match):
+    with pytest.raises(exc, match=match):
+        jg.sample(jax.random.key(0), intents, intensities)
+
+
+def test_too_many_trajectories_per_call_are_refused():
+    with pytest.raises(ValueError, match="at most"):
+        jg.sample(jax.random.key(0), list(range(16)) * 8, "subtle", num_samples=sampling.MAX_SAMPLES)
+
+
+def test_repeated_public_calls_trace_once_per_sampler_steps_bucket():
+    name = str(sampling.DEFAULT_CHECKPOINT)
+    config = ("midpoint", 3)
+    for seed, (intent, intensity, k) in enumerate([("greeting", "subtle", 1), (4, 2, 1), ("resting", 0, 1),
+                                                    ("pointing", 1, 5), (0, 3, 7), ([1, 2], 0, 3)]):
+        jg.sample(jax.random.key(seed), intent, intensity, num_samples=k, sampler=config[0], steps=config[1])
+        jg.sample(jax.random.PRNGKey(seed), intent, intensity, num_samples=k, sampler=config[0], steps=config[1])
+    assert sampling.TRACES[(name, *config, 1)] == 1
+    assert sampling.TRACES[(name, *config, 8)] == 1  # 5, 7 and 2 x 3 share the bucket of 8
+    assert sampling.TRACES[(name, *config, 2)] == 0
