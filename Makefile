@@ -31,20 +31,20 @@ test-fast: install
 ablation: install
 	$(PY) -m experiments.ablation
 	$(PY) -m experiments.sweep tau_rms
-	$(PY) -m experiments.readme
+	$(PY) -m tools.readme
 
 # Beyond Table II: sampler steps and spline-control sweeps (reuse runs/ablation checkpoints), benchmarks.
 sweeps: install
 	$(PY) -m experiments.sweep steps
 	$(PY) -m experiments.sweep controls
-	$(PY) -m experiments.readme
+	$(PY) -m tools.readme
 
 bench: install
 	$(PY) -m experiments.bench all
-	$(PY) -m experiments.readme
+	$(PY) -m tools.readme
 
 library: install
-	$(PY) -m experiments.build_library
+	$(PY) -m tools.build_library
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -6,7 +6,7 @@ warm single-trajectory latency), adds the oracle and wrong-intent references, si
 sample on the trunk for the physics columns (K_div x 64 per method and seed, batched, ``engine="auto"``:
 native MuJoCo on CPU, MJX on an accelerator; shape success under a tolerance calibrated from the
 library's own spread, shape diversity, feasibility), adds the physics-aware RF row (rejection-sampling
-fine-tuning on screened samples, :mod:`jgrounding.physics_training`), and writes
+fine-tuning on screened samples, :mod:`jgrounding.training.physics`), and writes
 results/ablation.{md,csv,json} plus results/ablation_rms.npz (per-sample RMS, reused by the sweeps).
 Every cell is mean ± std over seeds.
 """
@@ -25,8 +25,12 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import (checkpoints, distributed, library, load_library, methods, metrics, physics_training,
-                        semantics, trunk, trunk_eval)
+from jgrounding import library, load_library, semantics, sim
+from jgrounding.evaluation import metrics
+from jgrounding.evaluation import physics as trunk_eval
+from jgrounding.generators import methods
+from jgrounding.training import checkpoints, distributed
+from jgrounding.training import physics as physics_training
 from jgrounding.training import TrainConfig
 
 PAPER = {  # Table II of the paper: success, diversity, time (ms)
@@ -45,7 +49,7 @@ class AblationConfig:
     k_div: int = 30  # Table I
     tau: float = metrics.TAU_RMS
     euler_steps: int = 50  # Table I: S
-    engine: str = "auto"  # trunk.rollout engine for the physics columns: native on CPU, MJX on an accelerator
+    engine: str = "auto"  # sim.rollout engine for the physics columns: native on CPU, MJX on an accelerator
     physics_aware: bool = True  # add the physics-aware RF row (needs tuple_spline_rf in methods)
     physics: physics_training.PhysicsConfig = physics_training.PhysicsConfig()
     methods: tuple[str, ...] = methods.METHODS
@@ -102,7 +106,7 @@ def run(cfg: AblationConfig) -> dict:
     rows, per_sample, samples = {}, {}, {}
     t_lib = time.perf_counter()  # the library simulated once: held-out references + the shape tolerance
     lib_u = np.concatenate([lib.train.u, lib.heldout.u])
-    lib_backbone = trunk.rollout(lib_u, engine=cfg.engine).backbone
+    lib_backbone = sim.rollout(lib_u, engine=cfg.engine).backbone
     ref_backbone = lib_backbone[len(lib.train):]
     tol = trunk_eval.calibrate(lib_u, lib_backbone, np.concatenate([lib.train.intent, lib.heldout.intent]),
                                np.concatenate([lib.train.intensity, lib.heldout.intensity]), cfg.tau)
@@ -160,7 +164,7 @@ def run(cfg: AblationConfig) -> dict:
     physics_s += sum(p["physics_s"] for p in ref_phys.values())
     return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
             "shape_tolerance": dataclasses.asdict(tol), "physics_s": physics_s, "run_s": time.perf_counter() - t_run,
-            "physics_engine": trunk.resolve_engine(cfg.engine),
+            "physics_engine": sim.resolve_engine(cfg.engine),
             "per_sample_rms": per_sample, "samples": samples, "date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
                        f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})"}
@@ -267,7 +271,7 @@ def findings(res: dict) -> list[str]:
 
 
 def write(res: dict, out: str) -> None:
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     outdir = Path(out)
     md = markdown(res)

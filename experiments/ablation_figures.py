@@ -11,8 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding import methods, metrics, trunk
-from jgrounding.plotting import TENDON_COLORS, plot_tendons, plt, save
+from jgrounding import sim
+
+from jgrounding.generators import methods
+
+from jgrounding.evaluation import metrics
+from jgrounding.apps.plotting import TENDON_COLORS, plot_tendons, plt, save
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 FIG4_TUPLES = (("embracing", "emphatic"), ("withdrawal", "moderate"))
@@ -45,14 +49,14 @@ def fig4(samples: dict[str, np.ndarray], lib, path: Path) -> str:
             if col:
                 ax.set_ylabel("")
         axes[row, 0].set_ylabel(f"{intent} / {intensity}\ntendon pull u", fontsize=8)
-        sim = trunk.rollout(np.concatenate([ref[None], u])).backbone[:, -1]  # final postures (1 + M, 11, 3)
+        final = sim.rollout(np.concatenate([ref[None], u])).backbone[:, -1]  # final postures (1 + M, 11, 3)
         for k, (plane, label) in enumerate((((0, 2), "side view: x (toward user) [m]"), ((1, 2), "front view: y (left) [m]"))):
             ax = axes[row, len(names) + k]
-            _posture(ax, sim[0], plane, color="k", ls="--", lw=2, label="library reference")
+            _posture(ax, final[0], plane, color="k", ls="--", lw=2, label="library reference")
             for i, m in enumerate(names):
-                _posture(ax, sim[i + 1], plane, color=METHOD_COLORS[i], lw=1.2, label=methods.DISPLAY[m])
+                _posture(ax, final[i + 1], plane, color=METHOD_COLORS[i], lw=1.2, label=methods.DISPLAY[m])
             if plane == (0, 2):
-                ax.axvspan(trunk.tm.USER_TORSO_X - trunk.tm.USER_TORSO_RADIUS, 0.7, color="tab:orange", alpha=0.12)
+                ax.axvspan(sim.tm.USER_TORSO_X - sim.tm.USER_TORSO_RADIUS, 0.7, color="tab:orange", alpha=0.12)
                 ax.text(0.30, 0.45, "user", fontsize=7, color="tab:orange")
             ax.set_xlim(-0.55, 0.6)
             ax.set_ylim(0.35, 1.15)

@@ -17,8 +17,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import load_library, methods, semantics
-from jgrounding.export import write_atomic
+from jgrounding import load_library, semantics
+
+from jgrounding.generators import methods
+from jgrounding.io import write_atomic
 from jgrounding.training import TrainConfig
 
 PAPER_MS = {"tuple_spline_rf": 4.87, "tuple_spline_ddpm": 7.86}

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import semantics
-from jgrounding.export import write_atomic
+from jgrounding.io import write_atomic
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 DATA = Path(__file__).resolve().parent / "data" / "paraphrases.json"

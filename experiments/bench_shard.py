@@ -28,7 +28,13 @@ def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
     import jax
     import numpy as np
 
-    from jgrounding import distributed, load_library, methods, sampling
+    from jgrounding import load_library
+
+    from jgrounding.training import distributed
+
+    from jgrounding.generators import methods
+
+    from jgrounding.generators import sampling
 
     trained, emb = sampling.load()
     lib = load_library()
@@ -116,7 +122,7 @@ def main(argv=None) -> int:
                   "table shows the sharded path runs and matches the single-device trajectories."]
     text = "\n".join(lines)
     print(text)
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     write_atomic(ROOT / "results" / "bench_shard.md", text + "\n")
     return 0

@@ -21,9 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding import load_library, trunk, trunk_mjx
-from jgrounding import trunk_model as tm
-from jgrounding.export import write_atomic
+from jgrounding import load_library, sim
+
+from jgrounding.sim import mjx as trunk_mjx
+from jgrounding.sim import model as tm
+from jgrounding.io import write_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 _CACHED = ("import sys, time, numpy as np; from jgrounding import trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
@@ -44,7 +46,7 @@ def _first_and_warm(u, chunk):
 _PROBE = """
 import sys, time, jax, mujoco
 from mujoco import mjx
-from jgrounding import trunk_model as tm
+from jgrounding.sim import model as tm
 contact, pairs, what = sys.argv[1] == "1", int(sys.argv[2]), sys.argv[3]
 m = mujoco.MjModel.from_xml_string(tm.build_xml(contact=contact, contact_segments=pairs))
 m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
@@ -101,12 +103,12 @@ def main(argv=None) -> int:
     if args.compile:
         lines = compile_probe()
         lines.append(f"\nCold compiles, no persistent cache, {os.cpu_count()} CPU cores, load average "
-                     f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.trunk_mjx.")
+                     f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.sim.mjx.")
         write_atomic(ROOT / "results" / "bench_trunk_compile.md", "\n".join(lines) + "\n")
         return 0
     lib = load_library()
     pool = np.concatenate([lib.train.u, lib.heldout.u])
-    physics_steps = trunk.NUM_STEPS * trunk.SUBSTEPS
+    physics_steps = sim.NUM_STEPS * sim.SUBSTEPS
     lines = []
 
     def say(line=""):
@@ -119,7 +121,7 @@ def main(argv=None) -> int:
         out = subprocess.run([sys.executable, "-c", _CACHED, cache, str(args.chunk), str(run)], capture_output=True,
                              text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
         cached = float(out.stdout.split()[-1]) if out.returncode == 0 else float("nan")
-    say(f"MJX batched rollout (chunk {args.chunk}, 150 control steps x {trunk.SUBSTEPS} substeps): compile "
+    say(f"MJX batched rollout (chunk {args.chunk}, 150 control steps x {sim.SUBSTEPS} substeps): compile "
         f"{first - run:.1f} s cold (first call {first:.1f} s minus a warm call {run:.1f} s); "
         f"{cached:.1f} s in a fresh process with the persistent compilation cache filled (trace + cache load).")
     say("")
@@ -128,7 +130,7 @@ def main(argv=None) -> int:
     for b in (int(x) for x in args.batches.split(",")):
         u = pool[np.arange(b) % len(pool)]
         t0 = time.perf_counter()
-        ref = trunk.rollout(u, engine="native")
+        ref = sim.rollout(u, engine="native")
         native = b * physics_steps / (time.perf_counter() - t0)
         t0 = time.perf_counter()
         got = trunk_mjx.rollout_mjx(u, True, chunk=args.chunk)

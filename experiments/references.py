@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 
-from jgrounding import library, load_library, metrics
+from jgrounding import library, load_library
+
+from jgrounding.evaluation import metrics
 
 NAMES = {"oracle": "oracle (same-tuple replay)", "tuple_mean": "tuple mean (regressor ceiling)",
          "wrong_intent": "wrong intent, same intensity", "far_intensity": "same intent, 2+ intensity levels away",

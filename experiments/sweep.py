@@ -20,9 +20,15 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import load_library, methods, metrics, semantics, splines
-from jgrounding.export import write_atomic
-from jgrounding.plotting import plt, save
+from jgrounding import load_library, semantics
+
+from jgrounding.generators import methods
+
+from jgrounding.evaluation import metrics
+
+from jgrounding.actuation import splines
+from jgrounding.io import write_atomic
+from jgrounding.apps.plotting import plt, save
 from jgrounding.training import TrainConfig
 
 SWEEPS = ("tau_rms", "steps", "controls", "training")

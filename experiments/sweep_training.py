@@ -17,8 +17,12 @@ import time
 import jax
 import numpy as np
 
-from jgrounding import load_library, methods, metrics, semantics
-from jgrounding.plotting import plt, save
+from jgrounding import load_library, semantics
+
+from jgrounding.generators import methods
+
+from jgrounding.evaluation import metrics
+from jgrounding.apps.plotting import plt, save
 from jgrounding.training import TrainConfig
 
 RF, DDPM = "tuple_spline_rf", "tuple_spline_ddpm"

@@ -21,7 +21,13 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from jgrounding import checkpoints, distributed, library, load_library, methods, semantics, training
+from jgrounding import library, load_library, semantics, training
+
+from jgrounding.training import checkpoints
+
+from jgrounding.training import distributed
+
+from jgrounding.generators import methods
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 

@@ -17,7 +17,9 @@ import os
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "osmesa"
 
-from jgrounding import safety, splines
+from jgrounding import safety
+
+from jgrounding.actuation import splines
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe, intensity_index, intent_index
 
 __version__ = "0.1.0"
@@ -25,9 +27,10 @@ __version__ = "0.1.0"
 # Public name -> (module, attribute), resolved lazily.
 _LAZY = {
     "ground": ("jgrounding.semantics", "ground"),
-    "sample": ("jgrounding.sampling", "sample"),
+    "sample": ("jgrounding.generators.sampling", "sample"),
     "load_library": ("jgrounding.library", "load_library"),
-    "trunk": ("jgrounding.trunk", None),
+    "trunk": ("jgrounding.sim", None),
+    "sim": ("jgrounding.sim", None),
 }
 
 __all__ = ["INTENTS", "INTENSITIES", "describe", "intent_index", "intensity_index", "splines",

@@ -1,3 +1,3 @@
-from jgrounding.cli import main
+from jgrounding.apps.cli import main
 
 raise SystemExit(main())

@@ -65,7 +65,8 @@ INTENSITY_DESCRIPTIONS: dict[str, str] = {
 }
 
 
-def _normalise(name: str) -> str:
+def normalise(name: str) -> str:
+    """How names are matched: case-insensitive, with "-" and " " read as "_" ("Attentive listening")."""
     return name.strip().lower().replace("-", "_").replace(" ", "_")
 
 
@@ -79,7 +80,7 @@ def _index(value, names: tuple[str, ...], kind: str) -> int:
             return i
         raise ValueError(f"{kind} index {i} is out of range 0..{len(names) - 1}; valid: {', '.join(names)}")
     if isinstance(value, str):
-        key = _normalise(value)
+        key = normalise(value)
         if key in names:
             return names.index(key)
         plural = "intensities" if kind == "intensity" else f"{kind}s"

@@ -17,14 +17,14 @@ def _block(text: str, name: str) -> str:
 
 
 def test_api_reference_is_up_to_date():
-    from experiments import api_docs
+    from tools import api_docs
 
     assert (DOCS / "api.md").read_text() == api_docs.render(), \
-        "docs/api.md is stale: run `python -m experiments.api_docs`"
+        "docs/api.md is stale: run `python -m tools.api_docs`"
 
 
 def test_mllm_page_matches_the_client():
-    from jgrounding import mllm
+    from jgrounding.semantics import mllm
 
     text = (DOCS / "mllm.md").read_text()
     assert json.loads(_block(text, "schema")) == mllm.SCHEMA

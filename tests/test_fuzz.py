@@ -5,7 +5,7 @@
 - ``jg.sample`` with fuzzed arguments: valid ones give safe arrays, invalid ones a ValueError/TypeError
   that names what is accepted.
 - fuzzed text through ``jg.ground``: a grounding or a clear ValueError/TypeError, nothing else.
-- fuzzed command lines through ``jgrounding.cli.main``: success, or exit 2 with a usage message.
+- fuzzed command lines through ``jgrounding.apps.cli.main``: success, or exit 2 with a usage message.
 """
 import contextlib
 import io
@@ -20,8 +20,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import jgrounding as jg
-from jgrounding import cli, flows, methods, safety, sampling
-from jgrounding.vocabulary import INTENSITIES, INTENTS, _normalise
+from jgrounding import safety
+from jgrounding.apps import cli
+from jgrounding.generators import flows
+from jgrounding.generators import methods
+from jgrounding.generators import sampling
+from jgrounding.vocabulary import INTENSITIES, INTENTS, normalise
 
 BATCH = 2048
 FUZZ_BATCHES = 52  # 52 x 2048 = 106,496 conditions, each with its own noise
@@ -63,10 +67,10 @@ def _conditions(kind: str, rng: np.random.Generator, emb: np.ndarray, scale: flo
 
 def _key(kind: str, seed: int, words: tuple[int, int]):
     if kind == "typed":
-        return sampling._as_key(jax.random.key(seed))
+        return sampling.as_key(jax.random.key(seed))
     if kind == "raw":
-        return sampling._as_key(jax.random.PRNGKey(seed))
-    return sampling._as_key(np.array(words, np.uint32))  # raw key data, extremes included
+        return sampling.as_key(jax.random.PRNGKey(seed))
+    return sampling.as_key(np.array(words, np.uint32))  # raw key data, extremes included
 
 
 def _assert_safe(u: np.ndarray) -> None:
@@ -92,7 +96,7 @@ def test_sampling_path_is_safe_for_1e5_fuzzed_conditions_and_keys(model):
         cond = _conditions(kind, rng, emb, scale)
         assert cond.shape == (BATCH, 384) and np.all(np.isfinite(cond)) and np.abs(cond).max() <= 1e4
         intensity = rng.integers(0, 4, BATCH).astype(np.int32)
-        fn = methods._generate_fn(trained.method, trained.graphdef, *config, trained.num_controls)
+        fn = methods.generate_fn(trained.method, trained.graphdef, *config, trained.num_controls)
         u = np.asarray(fn(trained.params, jnp.asarray(cond), jnp.asarray(intensity),
                           _key(key_kind, seed, words)[None]))
         assert u.shape == (1, BATCH, 150, 4)
@@ -112,7 +116,7 @@ def test_non_finite_conditions_are_never_emitted(rows, value, seed):
     trained, emb = sampling.load()
     cond = np.array(emb[np.arange(32) % 16], np.float32)
     cond[rows, seed % 384] = value
-    fn = methods._generate_fn(trained.method, trained.graphdef, "euler", 50, trained.num_controls)
+    fn = methods.generate_fn(trained.method, trained.graphdef, "euler", 50, trained.num_controls)
     u = np.asarray(fn(trained.params, jnp.asarray(cond), jnp.zeros(32, jnp.int32), jax.random.key(seed)[None]))[0]
     if np.isnan(value):
         assert np.isnan(u[rows]).any()  # propagated, never repaired into something plausible
@@ -149,7 +153,7 @@ def test_sample_with_valid_fuzzed_arguments_is_safe(key, intent, intensity, num_
 
 
 def _not_a(names):
-    return lambda v: not (isinstance(v, str) and _normalise(v) in names)
+    return lambda v: not (isinstance(v, str) and normalise(v) in names)
 
 
 JUNK = (st.none() | st.floats(allow_nan=True) | st.binary(max_size=4) | st.lists(st.integers(), max_size=2)

@@ -11,7 +11,12 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import checkpoints, cli, library, methods, sampling, semantics, splines, training
+from jgrounding import library, semantics, training
+from jgrounding.training import checkpoints
+from jgrounding.apps import cli
+from jgrounding.generators import methods
+from jgrounding.generators import sampling
+from jgrounding.actuation import splines
 
 
 @pytest.mark.parametrize("call, exc, match", [
@@ -127,10 +132,10 @@ def test_load_library_names_a_missing_file(tmp_path):
 
 @pytest.mark.parametrize("bad", [np.full((150, 4), "a"), np.zeros((150, 4), complex), [[object()] * 4] * 150])
 def test_rollout_refuses_non_real_commands(bad):
-    from jgrounding import trunk
+    from jgrounding import sim
 
     with pytest.raises(TypeError, match="real-valued"):
-        trunk.rollout(bad)
+        sim.rollout(bad)
 
 
 def test_load_library_refuses_a_non_path():

@@ -1,4 +1,4 @@
-"""Regenerate the demonstration library: ``python -m experiments.build_library [--seed N]``.
+"""Regenerate the demonstration library: ``python -m tools.build_library [--seed N]``.
 
 Writes assets/library.npz + assets/library.json (byte-identical for a seed), the library card
 docs/library_card.md and its figures under docs/library/.
@@ -24,7 +24,7 @@ def main(argv=None) -> int:
           f"{card['candidates_accepted']}/{card['candidates_tried']} candidates accepted) "
           f"in {time.perf_counter() - t0:.1f} s")
     if not args.no_card:
-        from experiments import library_card
+        from tools import library_card
 
         library_card.write(library.load_library(path))
     return 0

@@ -1,9 +1,9 @@
-"""Figures of the docs: ``python -m experiments.figures primitives|stages|all``.
+"""Figures of the docs: ``python -m tools.figures primitives|stages|all``.
 
 - ``primitives``: the trunk under simple held tendon commands, one picture per primitive family
   (bend toward each side, curl, retract, extend, touch) in docs/trunk/<family>.png and the composite
-  docs/trunk/primitives.png. Every panel is simulated by :func:`jgrounding.trunk.rollout` (the numbers in
-  its title) and rendered by :mod:`jgrounding.render`; the thin blue rod is the rest posture.
+  docs/trunk/primitives.png. Every panel is simulated by :func:`jgrounding.sim.rollout` (the numbers in
+  its title) and rendered by :mod:`jgrounding.sim.render`; the thin blue rod is the rest posture.
 - ``stages``: one figure per pipeline stage for docs/how_it_works.md, in docs/stages/
   (grounding, splines, sampling, trunk).
 - ``cli``: runs the command line on the README's example and keeps its pictures in docs/cli/.
@@ -15,11 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding import render, safety, trunk, trunk_model
-from jgrounding.plotting import TENDON_COLORS, TENDON_LABELS, plt, save
+from jgrounding import safety, sim
+
+from jgrounding.sim import render
+
+from jgrounding.sim import model as trunk_model
+from jgrounding.apps.plotting import TENDON_COLORS, TENDON_LABELS, plt, save
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
-T = trunk.NUM_STEPS
+T = sim.NUM_STEPS
 RAMP = 40  # control steps (1.3 s) to ease into a held command
 PNG_COLORS = 128  # palette size of the rendered pictures (keeps each well under 150 KB)
 
@@ -51,12 +55,12 @@ def primitive_commands() -> dict[str, np.ndarray]:
     return {k: safety.emit(v) for k, v in u.items()}
 
 
-def _measure(r: trunk.Rollout, t: int) -> dict[str, float]:
-    rest_tip = trunk.BASE_POSITION - np.array([0.0, 0.0, trunk_model.TRUNK_LENGTH])
+def _measure(r: sim.Rollout, t: int) -> dict[str, float]:
+    rest_tip = sim.BASE_POSITION - np.array([0.0, 0.0, trunk_model.TRUNK_LENGTH])
     b = r.backbone[0, t]
     return {"dx": b[-1, 0] - rest_tip[0], "dy": b[-1, 1] - rest_tip[1], "tip_z": b[-1, 2],
             "length": float(np.linalg.norm(np.diff(b, axis=0), axis=1).sum()),
-            "turn": float(np.degrees(trunk._turning_angle(b[None])[0])),
+            "turn": float(np.degrees(sim.turning_angle(b[None])[0])),
             "user": float(r.user_distance[0, t]), "force": float(r.contact_force[0, t]),
             "touches": "touches" if r.contact_force[0, t] > 1e-3 else "no contact"}
 
@@ -108,10 +112,10 @@ def primitives(out: Path = DOCS / "trunk") -> list[str]:
     """docs/trunk/<family>.png for every family and the labelled composite docs/trunk/primitives.png."""
     commands = primitive_commands()
     names = list(commands)
-    r = trunk.rollout(np.stack([commands[n] for n in names]))
-    if not (r.stable.all() and trunk.feasible(r).all()):
+    r = sim.rollout(np.stack([commands[n] for n in names]))
+    if not (r.stable.all() and sim.feasible(r).all()):
         raise RuntimeError("a primitive command is unstable or infeasible on the trunk")
-    rollouts = {n: trunk.Rollout(**{f: getattr(r, f)[i:i + 1] for f in trunk.Rollout.__dataclass_fields__})
+    rollouts = {n: sim.Rollout(**{f: getattr(r, f)[i:i + 1] for f in sim.Rollout.__dataclass_fields__})
                 for i, n in enumerate(names)}
     written = []
     for family, family_panels in FAMILIES.items():
@@ -194,7 +198,7 @@ def sampling_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_T
     import jax
 
     import jgrounding as jg
-    from jgrounding import metrics
+    from jgrounding.evaluation import metrics
 
     U = jg.sample(jax.random.key(0), intent, intensity, num_samples=num_samples)
     lib = jg.load_library()
@@ -223,7 +227,7 @@ def trunk_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_TUPL
     import jgrounding as jg
 
     u = jg.sample(jax.random.key(0), intent, intensity, num_samples=30)[0]
-    r = trunk.rollout(u)
+    r = sim.rollout(u)
     fig, axes = plt.subplots(2, len(steps), figsize=(2.9 * len(steps), 5.0), layout="constrained")
     for row, view in enumerate(render.BOTH_VIEWS):
         imgs, _ = render.frames(u, list(steps), view, labels=True, ghost=True)
@@ -232,7 +236,7 @@ def trunk_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_TUPL
             ax.set_axis_off()
             if row == 0:
                 pulls = " ".join(f"{x:.2f}" for x in u[t])
-                ax.set_title(f"t = {t * trunk.CONTROL_DT:.1f} s   u = [{pulls}]\n"
+                ax.set_title(f"t = {t * sim.CONTROL_DT:.1f} s   u = [{pulls}]\n"
                              f"{r.user_distance[0, t]:.2f} m from the user", fontsize=8)
     fig.suptitle(f"{intent} / {intensity}, sample 0 on the trunk (top: side view, user on the right; bottom: rear "
                  "view, robot's left on the left; thin blue rod: rest posture)", fontsize=9)
@@ -242,7 +246,7 @@ def trunk_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_TUPL
 def stages(out: Path = DOCS / "stages") -> list[str]:
     """One figure per pipeline stage (SPEC §1) for docs/how_it_works.md."""
     return [grounding_figure(out / "grounding.png"), splines_figure(out / "splines.png"),
-            sampling_figure(out / "sampling.png"), trunk_figure(out / "trunk.png")]
+            sampling_figure(out / "sampling.png"), trunk_figure(out / "sim.png")]
 
 
 CLI_TEXT = "User seems sad; respond calmly with a gentle touch"
@@ -255,7 +259,7 @@ def cli_pictures(out: Path = DOCS / "cli", text: str = CLI_TEXT) -> list[str]:
     import shutil
     import tempfile
 
-    from jgrounding import cli
+    from jgrounding.apps import cli
 
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import load_library
-from jgrounding.export import write_atomic
+from jgrounding.io import write_atomic
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 OUT = Path(__file__).resolve().parent.parent / "assets" / "examples" / "trunk_recordings"

@@ -37,7 +37,7 @@ def _check_sizes(num_steps: int, num_controls: int) -> None:
 
 
 @functools.lru_cache(maxsize=64)
-def _basis_np(num_steps: int, num_controls: int) -> np.ndarray:
+def basis_np(num_steps: int, num_controls: int) -> np.ndarray:
     tau = np.linspace(0.0, 1.0, num_steps)
     seg_count = num_controls - 1
     x = tau * seg_count
@@ -64,12 +64,12 @@ def _basis_np(num_steps: int, num_controls: int) -> np.ndarray:
 def basis(num_steps: int = NUM_STEPS, num_controls: int = NUM_CONTROLS) -> jax.Array:
     """Reconstruction matrix ``B`` of shape ``(T, P)``: ``u[:, j] = B @ c[j, :]``."""
     _check_sizes(num_steps, num_controls)
-    return jnp.asarray(_basis_np(int(num_steps), int(num_controls)), dtype=jnp.float32)
+    return jnp.asarray(basis_np(int(num_steps), int(num_controls)), dtype=jnp.float32)
 
 
 @functools.lru_cache(maxsize=64)
-def _pinv_np(num_steps: int, num_controls: int) -> np.ndarray:
-    b = _basis_np(num_steps, num_controls)
+def pinv_np(num_steps: int, num_controls: int) -> np.ndarray:
+    b = basis_np(num_steps, num_controls)
     return np.linalg.solve(b.T @ b, b.T)  # (P, T), computed in float64
 
 
@@ -111,5 +111,5 @@ def fit(u, num_controls: int = NUM_CONTROLS) -> jax.Array:
     _check_sizes(u.shape[-2], num_controls)
     _check_finite(u, "actuation")
     dtype = u.dtype if jnp.issubdtype(u.dtype, jnp.floating) else jnp.float32
-    pinv = jnp.asarray(_pinv_np(int(u.shape[-2]), int(num_controls)), dtype=dtype)
+    pinv = jnp.asarray(pinv_np(int(u.shape[-2]), int(num_controls)), dtype=dtype)
     return jnp.einsum("pt,...tj->...jp", pinv, u.astype(dtype))

@@ -84,8 +84,13 @@ def run(args: argparse.Namespace) -> int:
     import jax
     import numpy as np
 
-    from jgrounding import export, plotting, vocabulary
-    from jgrounding.sampling import sample
+    from jgrounding import vocabulary
+
+    from jgrounding.apps import export
+    from jgrounding.io import write_atomic
+
+    from jgrounding.apps import plotting
+    from jgrounding.generators.sampling import sample
 
     say = _Printer(args.quiet, args.jsonl)
     out = Path(args.out)
@@ -116,22 +121,22 @@ def run(args: argparse.Namespace) -> int:
     say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]} "
         f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
 
-    from jgrounding.trunk import CONTROL_DT
+    from jgrounding.sim import CONTROL_DT
 
     meta = export.tuple_meta(vocabulary.intent_index(intent), vocabulary.intensity_index(intensity),
                              text=args.text, seed=args.seed, sample=0, confidence=confidence)
     files = {
         "tendons": plotting.tendon_figure(u, out / "tendons.png", title=f"{intent} / {intensity}"),
-        "csv": str(export.write_atomic(out / "commands.csv",
+        "csv": str(write_atomic(out / "commands.csv",
                                        export.command_stream_csv(u[0], control_dt=CONTROL_DT, meta=meta))),
-        "json": str(export.write_atomic(out / "commands.json",
+        "json": str(write_atomic(out / "commands.json",
                                         export.command_stream_json(u[0], control_dt=CONTROL_DT, meta=meta))),
     }
     buf = __import__("io").BytesIO()
     np.save(buf, u)
-    files["samples"] = str(export.write_atomic(out / "samples.npy", buf.getvalue()))
+    files["samples"] = str(write_atomic(out / "samples.npy", buf.getvalue()))
     if not args.no_render:
-        from jgrounding import render
+        from jgrounding.sim import render
 
         t0 = time.perf_counter()
         files["posture"] = str(render.render_posture(u[0], out / "posture.png"))

@@ -1,4 +1,4 @@
-"""Interactive loop: ``python -m jgrounding.interact``.
+"""Interactive loop: ``python -m jgrounding.apps.interact``.
 
 Type a response plan ("User seems sad; respond calmly") and see the grounded tuple, a tendon plot and,
 with ``:render``, the simulated motion. ``obs: <scene> | <what the user said>`` asks the MLLM for a
@@ -17,7 +17,7 @@ HELP = __doc__.split("\n\n", 1)[1]
 
 def main(argv=None, stdin=None, stdout=None) -> int:
     stdin, stdout = stdin or sys.stdin, stdout or sys.stdout
-    p = argparse.ArgumentParser(prog="python -m jgrounding.interact", description="Interactive grounding loop.")
+    p = argparse.ArgumentParser(prog="python -m jgrounding.apps.interact", description="Interactive grounding loop.")
     p.add_argument("--out", default="interact_out")
     p.add_argument("--backend", choices=("embedded", "mllm"), default="embedded")
     p.add_argument("--seed", type=int, default=0)
@@ -25,8 +25,10 @@ def main(argv=None, stdin=None, stdout=None) -> int:
 
     import jax
 
-    from jgrounding import plotting, render
-    from jgrounding.sampling import sample
+    from jgrounding.apps import plotting
+
+    from jgrounding.sim import render
+    from jgrounding.generators.sampling import sample
     from jgrounding.semantics import ground
 
     out = Path(args.out)
@@ -54,7 +56,7 @@ def main(argv=None, stdin=None, stdout=None) -> int:
             continue
         text = line
         if line.startswith("obs:"):
-            from jgrounding import mllm
+            from jgrounding.semantics import mllm
 
             scene, _, said = line[4:].partition("|")
             try:

@@ -39,7 +39,7 @@ def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = Tr
 def save(fig, path: str | os.PathLike, dpi: int = 110, colors: int | None = None) -> str:
     """Save a figure atomically as PNG and close it; ``colors`` (e.g. 128) stores it with a palette of
     that many colours, which keeps rendered pictures small enough for the docs."""
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")

@@ -18,8 +18,16 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import checkpoints, distributed, flows, safety, splines, training
-from jgrounding.models import CNNRegressor, VelocityMLP
+from jgrounding import safety, training
+
+from jgrounding.training import checkpoints
+
+from jgrounding.training import distributed
+
+from jgrounding.generators import flows
+
+from jgrounding.actuation import splines
+from jgrounding.generators.networks import CNNRegressor, VelocityMLP
 
 METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm", "tuple_spline_rf")
 DISPLAY = {
@@ -137,7 +145,7 @@ def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainCon
           initial_states=None, on_chunk=None, mesh=None) -> Trained:
     """Train ``method`` on ``library.train`` for every seed at once (vmap); returns :class:`Trained`.
 
-    ``mesh``: split the seeds over the devices of a :func:`jgrounding.distributed.make_mesh` mesh.
+    ``mesh``: split the seeds over the devices of a :func:`jgrounding.training.distributed.make_mesh` mesh.
     """
     from jgrounding import semantics
 
@@ -296,14 +304,14 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
              guidance: float = 0.0) -> np.ndarray:
     """u ``(num_seeds, N, K, 150, 4)`` for conditions ``cond (N, 384)``, ``intensity (N,)``.
 
-    ``mesh``: a :func:`jgrounding.distributed.make_mesh` mesh; the flattened (condition x sample)
+    ``mesh``: a :func:`jgrounding.training.distributed.make_mesh` mesh; the flattened (condition x sample)
     batch is then split over its devices. ``batch`` is rounded up to a multiple of the device count;
     the noise depends on the batch layout, so the result equals the single-device run with that batch.
     """
     n = cond.shape[0]
     cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), num_samples, axis=0)
     inten_k = jnp.repeat(jnp.asarray(intensity, jnp.int32), num_samples, axis=0)
-    fn = _generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh,
+    fn = generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh,
                       trained.num_tendons, guidance)
     keys = jax.random.split(key, len(trained.seeds))
     params = trained.params
@@ -326,7 +334,7 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
 _GEN_CACHE: dict = {}
 
 
-def _generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_tendons: int = 4, guidance=0.0):
+def generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_tendons: int = 4, guidance=0.0):
     """``jit(vmap over seeds(sample_one))``; with a mesh the batch axis is split over its devices."""
     key = (method, id(graphdef), sampler, steps, num_controls, mesh, num_tendons, float(guidance))
     if key not in _GEN_CACHE:

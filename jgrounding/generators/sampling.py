@@ -22,7 +22,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jgrounding import flows, methods, safety
+from jgrounding import safety
+
+from jgrounding.generators import flows
+
+from jgrounding.generators import methods
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "checkpoints" / "tuple_spline_rf"
@@ -93,7 +97,7 @@ class Model:
                steps: int = 50) -> np.ndarray:
         """:func:`sample` for this model (same arguments, shapes and errors)."""
         sampler, steps = self._check(num_samples, sampler, steps)
-        key = _as_key(key)
+        key = as_key(key)
         ms, zs = _sequence(intent), _sequence(intensity)
         if ms is None and zs is None:
             m, z = _intent(intent), _intensity(intensity)
@@ -176,7 +180,8 @@ def _indices(ms: list | None, zs: list | None, intent, intensity) -> tuple[np.nd
 def check_library(path: Path) -> None:
     """Refuse a checkpoint whose recorded library file (``library_path`` in its meta.json, written by
     ``experiments.train``) exists but no longer has the sha256 the checkpoint was trained on."""
-    from jgrounding import checkpoints, library
+    from jgrounding import library
+    from jgrounding.training import checkpoints
 
     meta = checkpoints.read_meta(path) if (Path(path) / "meta.json").exists() else {}
     lib_path, digest = meta.get("library_path"), meta.get("library_sha256")
@@ -188,7 +193,7 @@ def check_library(path: Path) -> None:
 
 def trained_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
     """The (intent, intensity) tuples a checkpoint's library holds (``None``: all 64, or not recorded)."""
-    from jgrounding import checkpoints
+    from jgrounding.training import checkpoints
 
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
     tuples = checkpoints.read_meta(path).get("tuples")
@@ -197,7 +202,7 @@ def trained_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
     return tuple((intent_index(t.split("/")[0]), intensity_index(t.split("/")[1])) for t in tuples)
 
 
-def _as_key(key):
+def as_key(key):
     accepted = "a typed key from jax.random.key(seed) or a raw uint32[2] key from jax.random.PRNGKey(seed)"
     if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
         if key.shape != ():
@@ -215,7 +220,7 @@ def model(checkpoint: str | Path | None = None) -> Model:
     """The :class:`Model` of a checkpoint directory (default: the shipped RF), restored once per process.
 
     Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
-    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.methods.restore`), and one whose
+    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.generators.methods.restore`), and one whose
     model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
     An ablation checkpoint (several seeds) samples with its first seed.
     """

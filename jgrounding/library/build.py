@@ -1,10 +1,10 @@
 """The expert demonstration library (Sec. III-C.1, SPEC §3): 64 tuples x 4 realizations = 256 pairs.
 
-Built by :func:`build` (``python -m experiments.build_library``): for every (intent, intensity) tuple,
-candidates from :mod:`jgrounding.primitives` are reduced to Catmull-Rom controls by Eq. (ci)
+Built by :func:`build` (``python -m tools.build_library``): for every (intent, intensity) tuple,
+candidates from :mod:`jgrounding.library.primitives` are reduced to Catmull-Rom controls by Eq. (ci)
 (``splines.fit``), reconstructed and passed through the safety gate (the expert trajectory is
 ``u = make_safe(R(c))``, exactly what the generators' outputs become), screened by
-:mod:`jgrounding.screening`, and the first four that pass are kept. One realization per tuple, drawn
+:mod:`jgrounding.library.screening`, and the first four that pass are kept. One realization per tuple, drawn
 from the seed, is held out: 192 train / 64 held-out.
 
 File format (``FORMAT_VERSION`` 1): ``assets/library.npz`` with arrays ``u (256,150,4) f32``,
@@ -23,16 +23,24 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding import primitives, responses, safety, screening, splines
+from jgrounding import safety
+
+from jgrounding.library import primitives
+
+from jgrounding.library import responses
+
+from jgrounding.library import screening
+
+from jgrounding.actuation import splines
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
 FORMAT_VERSION = 1
 # The library's content version: bump when the design (primitives, code, screening, responses) changes.
 # Checkpoints record it with the library's sha256 and are refused on another library (methods.restore).
 LIBRARY_VERSION = "2.0-one-to-many"
-ASSETS = Path(__file__).resolve().parent.parent / "assets"
+ASSETS = Path(__file__).resolve().parents[2] / "assets"
 DEFAULT_PATH = ASSETS / "library.npz"
-REGENERATE = "python -m experiments.build_library"
+REGENERATE = "python -m tools.build_library"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,7 +84,7 @@ def _reduce(candidates: np.ndarray, num_controls: int) -> tuple[np.ndarray, np.n
     differ in the last bits between machines, and regeneration must be byte-identical everywhere.
     """
     steps = candidates.shape[-2]
-    pinv, basis = splines._pinv_np(steps, num_controls), splines._basis_np(steps, num_controls)
+    pinv, basis = splines.pinv_np(steps, num_controls), splines.basis_np(steps, num_controls)
     controls = np.einsum("pt,btj->bjp", pinv, candidates.astype(np.float64)).astype(np.float32)
     raw = np.einsum("tp,bjp->btj", basis, controls.astype(np.float64)).astype(np.float32)
     return controls, raw, np.asarray(safety.make_safe(raw))
@@ -185,7 +193,7 @@ def to_bytes(arrays: dict) -> bytes:
 
 def save(arrays: dict, card: dict, path: str | Path = DEFAULT_PATH) -> Path:
     """Write ``path`` (.npz) and its card (.json) atomically; the card records the npz's sha256."""
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     data = to_bytes(arrays)
     card = {**card, "sha256": hashlib.sha256(data).hexdigest()}
@@ -264,7 +272,7 @@ def _bracket_pools(lib) -> dict:
 
 def bracket_distances(lib) -> dict[str, list[np.ndarray]]:
     """Per held-out target, the RMS of every replay of each bracket (the tuple mean: one value)."""
-    from jgrounding import metrics
+    from jgrounding.evaluation import metrics
 
     d = np.asarray(metrics.rms(lib.train.u[None], lib.heldout.u[:, None]))  # (64, 192)
     out = {name: [d[j, pool[j]] for j in range(len(d))] for name, pool in _bracket_pools(lib).items()}

@@ -16,7 +16,7 @@ robot's body, at a respectful distance, with a late, slow onset) and an *emphati
 (:func:`emphatic_anchor`: full reach toward the user, co-contraction that stiffens and curls the
 trunk, on time); moderate and pronounced are the points 1/3 and 2/3 of the way. The ends were
 refined into a code in which every two intents, every two variants and every two intensity levels
-two apart are far in RMS (``python -m experiments.design_signatures``; :data:`CODE`).
+two apart are far in RMS (``python -m tools.design_signatures``; :data:`CODE`).
 
 A candidate is a cosine-eased interpolation of the key poses on a time axis warped per realization,
 with per-realization variation in amplitude, timing and key-pose noise. The library reduces it with
@@ -29,7 +29,7 @@ import dataclasses
 
 import numpy as np
 
-from jgrounding.library_code import CODE as _CODE
+from jgrounding.library.signatures import CODE as _CODE
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
 NUM_STEPS = 150

@@ -3,14 +3,14 @@
 All checks are vectorised over a batch ``(B, 150, 4)`` and return boolean ``(B,)`` arrays, so the
 build script can report an acceptance rate per tuple and per check. The paper screens with an MLLM
 judge and manual verification on hardware; ours replaces both with simulation on the trunk
-(:mod:`jgrounding.trunk`) and explicit rules on the simulated whole-body shape (:data:`RULES`).
+(:mod:`jgrounding.sim`) and explicit rules on the simulated whole-body shape (:data:`RULES`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from jgrounding import safety, trunk
+from jgrounding import safety, sim
 from jgrounding.vocabulary import INTENTS
 
 MAX_OVERSHOOT = 0.30  # the raw reconstruction may leave [0, 1] by this much (saturated by the gate)
@@ -75,14 +75,14 @@ def screen(raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool
     smooth = np.abs(np.diff(u, n=3, axis=1)).max(axis=(1, 2)) <= MAX_JERK
     if not simulate:
         return {"bounds": bounds, "smooth": smooth, "accepted": bounds & smooth}
-    rollout = trunk.rollout(u, engine="native")
-    feats = trunk.features(rollout)
+    rollout = sim.rollout(u, engine="native")
+    feats = sim.features(rollout)
     semantic = np.zeros(len(u), dtype=bool)
     for m, name in enumerate(INTENTS):
         sel = intent == m
         if sel.any():
             z = np.full(int(sel.sum()), 3) if intensity is None else np.asarray(intensity)[sel]
             semantic[sel] = RULES[name]({k: v[sel] for k, v in feats.items()}, z)
-    out = {"bounds": bounds, "smooth": smooth, "feasible": trunk.feasible(rollout), "semantic": semantic}
+    out = {"bounds": bounds, "smooth": smooth, "feasible": sim.feasible(rollout), "semantic": semantic}
     out["accepted"] = np.logical_and.reduce([out[c] for c in CHECKS])
     return out

@@ -4,12 +4,12 @@ The embedded backend implements Eq. (3) literally, offline:
 
     (m, z) = argmin_{m, z}  L_sem(r, d_{m,z}),   L_sem = (1 - cos(E(r), E(d_m)))  +  w_z |z - z_hat(r)| / 3
 
-where E is our JAX MiniLM encoder (:mod:`jgrounding.encoder`), d_m the canonical description of intent
+where E is our JAX MiniLM encoder (:mod:`jgrounding.semantics.encoder`), d_m the canonical description of intent
 m together with a few cue phrases per intent (both part of the grounding specification C, written
 here, never taken from any evaluation set), and z_hat(r) in [0, 3] the intensity the text's degree
 cues call for: modifiers ("slightly", "clearly", "wildly"), urgency, exclamation marks and capitals,
 combined with the embedding's similarity to the intensity descriptions. ``backend="mllm"`` asks an
-OpenAI-compatible server instead (:mod:`jgrounding.mllm`) and falls back to this one.
+OpenAI-compatible server instead (:mod:`jgrounding.semantics.mllm`) and falls back to this one.
 
 ``intent_embeddings()`` is E_m of Sec. III-C: the frozen (16, 384) intent embeddings the generators
 condition on, shipped in ``assets/intent_embeddings.npz`` (``python -m jgrounding.semantics
@@ -27,9 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import vocabulary as voc
+from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
-ASSET = Path(__file__).resolve().parent.parent / "assets" / "intent_embeddings.npz"
+ASSET = Path(__file__).resolve().parents[2] / "assets" / "intent_embeddings.npz"
 MAX_CHARS = 4000          # ground() reads at most this many characters
 MAX_TOKENS = 256          # the encoder truncates here (all-MiniLM-L6-v2's max_seq_length)
 CONFIDENCE_THRESHOLD = 0.35  # below it a Grounding is flagged confident=False
@@ -122,30 +123,9 @@ _DEGREE_RE = [(level, w, re.compile(r"\b" + re.escape(w) + r"\b", re.IGNORECASE)
               for level, words in DEGREE.items() for w in words]
 
 
-@dataclasses.dataclass(frozen=True)
-class Grounding:
-    """The bounded tuple a text was reduced to, with how sure the reducer is."""
-
-    intent: str
-    intensity: str
-    confidence: float
-    backend: str
-    confident: bool
-    reason: str = ""
-    scores: tuple = ()
-
-    @property
-    def intent_index(self) -> int:
-        return INTENTS.index(self.intent)
-
-    @property
-    def intensity_index(self) -> int:
-        return INTENSITIES.index(self.intensity)
-
-
 def embed(texts) -> np.ndarray:
     """Sentence embeddings ``(N, 384)`` float32 (our JAX MiniLM)."""
-    from jgrounding import encoder
+    from jgrounding.semantics import encoder
 
     return encoder.embed(texts)
 
@@ -219,7 +199,7 @@ def degree_estimate(text: str) -> float | None:
 
 
 def _num_tokens(text: str) -> int:
-    from jgrounding import encoder
+    from jgrounding.semantics import encoder
 
     enc = encoder.tokenizer().encode(text)  # the tokenizer truncates; overflow says there was more
     return len(enc.ids) + sum(len(o.ids) for o in enc.overflowing)
@@ -289,53 +269,3 @@ def ground_embedded(text: str) -> Grounding:
 def _softmax(x):
     x = np.exp(x - x.max())
     return x / x.sum()
-
-
-def ground(text: str, *, backend: str = "embedded", **mllm_options) -> Grounding:
-    """Reduce an open-vocabulary response to a bounded (intent, intensity) tuple (Eq. 3 / Eq. 4).
-
-    ``backend``: ``"embedded"`` (offline MiniLM, default) or ``"mllm"`` (OpenAI-compatible server;
-    falls back to embedded with a logged reason). Empty or non-string input raises; nonsense returns
-    ``confident=False`` with a reason.
-    """
-    if not isinstance(text, str):
-        raise TypeError(f"text must be a str, got {type(text).__name__}")
-    if not text.strip():
-        raise ValueError("text is empty; give a response such as 'User seems sad; respond calmly'")
-    if len(text) > MAX_CHARS:
-        text = text[:MAX_CHARS]
-    try:  # the tokenizer (and any server) needs text that encodes as UTF-8
-        text.encode("utf-8")
-    except UnicodeEncodeError as e:
-        raise ValueError(f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
-                         "give a str that encodes as UTF-8") from None
-    if backend == "embedded":
-        return ground_embedded(text)
-    if backend == "mllm":
-        from jgrounding import mllm
-
-        return mllm.ground_mllm(text, **mllm_options)
-    raise ValueError(f"unknown backend {backend!r}; valid backends: embedded, mllm")
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description="Semantic reduction utilities.")
-    p.add_argument("--write-assets", action="store_true", help="regenerate assets/intent_embeddings.npz")
-    p.add_argument("text", nargs="*")
-    args = p.parse_args(argv)
-    if args.write_assets:
-        import io
-
-        from jgrounding.export import write_atomic
-
-        buf = io.BytesIO()
-        np.savez(buf, intent_embeddings=compute_intent_embeddings(), intents=np.array(INTENTS))
-        write_atomic(ASSET, buf.getvalue())
-        print(f"wrote {ASSET}")
-    for t in args.text:
-        print(ground(t))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -134,7 +134,8 @@ def parse_reply(text: str) -> tuple[str, str, float]:
 def ground_mllm(text: str, *, url: str | None = None, model: str | None = None, api_key: str | None = None,
                 retries: int | None = None, timeout_s: float | None = None):
     """Eq. (4) through an MLLM; falls back to the embedded reducer (reason logged and returned)."""
-    from jgrounding.semantics import Grounding, ground_embedded
+    from jgrounding.semantics.embedded import ground_embedded
+    from jgrounding.semantics.types import Grounding
 
     cfg = Config.from_env(url=url, model=model, api_key=api_key, retries=retries, timeout_s=timeout_s)
     messages = [{"role": "system", "content": grounding_specification()},

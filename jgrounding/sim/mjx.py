@@ -1,4 +1,4 @@
-"""MJX engine for :func:`jgrounding.trunk.rollout`: ``jit(vmap(scan over control steps))``.
+"""MJX engine for :func:`jgrounding.sim.rollout`: ``jit(vmap(scan over control steps))``.
 
 Each control step holds the command for ``SUBSTEPS`` physics steps (an inner ``lax.scan``); the outer
 scan records the backbone, tendon lengths and the normal force on the user at the end of each control
@@ -25,11 +25,13 @@ import jax.numpy as jnp
 import numpy as np
 import mujoco
 from mujoco import mjx
+# MJX 3.3.7 has no public contact-force function; this one private helper is isolated in _user_force.
 from mujoco.mjx._src import support as mjx_support  # contact_force_dim: pyramid -> normal force
 
-from jgrounding import trunk
+from jgrounding.sim import measures
+from jgrounding.sim.native import load_model
 
-CACHE_DIR = Path(__file__).resolve().parent.parent / ".cache" / "jax"
+CACHE_DIR = Path(__file__).resolve().parents[2] / ".cache" / "jax"
 
 
 def enable_compilation_cache(path: str | Path = CACHE_DIR) -> None:
@@ -41,9 +43,9 @@ def enable_compilation_cache(path: str | Path = CACHE_DIR) -> None:
 
 @functools.lru_cache(maxsize=2)
 def _model(contact: bool):
-    m = copy.copy(trunk.load_model(None, contact))  # a copy: the cached native model keeps its sensors
+    m = copy.copy(load_model(None, contact))  # a copy: the cached native model keeps its sensors
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
-    body_ids = np.array([m.body(f"seg{i}").id for i in range(trunk.NUM_SEGMENTS)])
+    body_ids = np.array([m.body(f"seg{i}").id for i in range(measures.NUM_SEGMENTS)])
     return m, mjx.put_model(m), body_ids, m.site("tip").id
 
 
@@ -65,7 +67,7 @@ def _compiled(contact: bool):
 
         def control_step(d, ctrl):
             d = d.replace(ctrl=ctrl)
-            d, _ = jax.lax.scan(substep, d, None, length=trunk.SUBSTEPS)
+            d, _ = jax.lax.scan(substep, d, None, length=measures.SUBSTEPS)
             points = jnp.concatenate([d.xpos[body_ids], d.site_xpos[tip_id][None]], axis=0)
             return d, (points, d.ten_length, _user_force(mx, d))
 
@@ -75,8 +77,8 @@ def _compiled(contact: bool):
     return jax.jit(jax.vmap(one))
 
 
-def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> trunk.Rollout:
-    """``(B, T, 4)`` validated commands -> :class:`trunk.Rollout` via MJX (float32).
+def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:
+    """``(B, T, 4)`` validated commands -> :class:`measures.Rollout` via MJX (float32).
 
     With ``chunk``, the batch runs as padded chunks of that size, so one compiled program serves every
     batch size (compilation, not execution, dominates on CPU).
@@ -93,5 +95,5 @@ def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -
             res = jax.device_get(fn(jnp.pad(part, ((0, pad), (0, 0), (0, 0)))))
             outs.append(tuple(x[: chunk - pad] for x in res))
     points, tendon, touch = (np.concatenate(x) for x in zip(*outs))
-    return trunk._finish(np.asarray(points, np.float64), np.asarray(tendon, np.float64),
+    return measures.finish_rollout(np.asarray(points, np.float64), np.asarray(tendon, np.float64),
                          np.asarray(touch, np.float64))

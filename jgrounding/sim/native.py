@@ -1,30 +1,9 @@
-"""The trunk in simulation: batched rollouts of actuation ``(B, 150, 4)`` on MuJoCo (native) or MJX.
-
-Two engines behind one function, :func:`rollout`, and one choice between them, ``engine="auto"``
-(the default):
-
-- ``"native"``: ``mujoco.rollout`` over the batch, multi-threaded, reading the backbone, tendon
-  lengths and user contact force from sensors. On CPU it is the fast path: about 10x MJX's physics
-  steps/s on this 2-core CPU (``python -m experiments.bench trunk`` prints both, for the ablation's
-  batch), and it needs no compilation.
-- ``"mjx"``: ``jit(vmap(lax.scan))`` over control steps with the physics substeps inside, compiled
-  once per chunk size (padded chunks of :data:`MJX_CHUNK`). It is the engine that scales on
-  accelerators; on CPU it serves as a check (the two agree to float precision).
-- ``"auto"``: ``"mjx"`` when JAX's default backend is an accelerator (GPU/TPU), else ``"native"``
-  (:func:`resolve_engine`). Every caller in the project (ablation, screened sampling, physics-aware
-  training) goes through it, so one flag decides the engine everywhere.
-
-Conventions (fixed; the library, the ablation and the CLI rely on them): the trunk hangs from its
-base at ``BASE_HEIGHT``; the user stands in front at +x; tendon 0 faces the user (+x), 1 the robot's
-left (+y), 2 away (-x), 3 right (-y); pulling tendon j bends the trunk toward side j, all four
-together shorten it. One control step lasts ``CONTROL_DT`` = 1/30 s (``SUBSTEPS`` physics steps), so
-150 steps are 5 s of motion. Commands must be finite and inside [0, 1] (``ValueError`` otherwise):
-this function simulates what it is given; clamping belongs to :mod:`jgrounding.safety` alone.
+"""The native engine: multi-threaded ``mujoco.rollout`` over the batch, reading the backbone,
+tendon lengths and user contact force from sensors (the CPU default of :func:`jgrounding.sim.rollout`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import os
 from pathlib import Path
@@ -32,40 +11,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from jgrounding import trunk_model as tm
+from jgrounding.sim import model as tm
+from jgrounding.sim.measures import NUM_CHANNELS, NUM_POINTS, SUBSTEPS, Rollout, finish_rollout
 
-NUM_SEGMENTS = tm.NUM_SEGMENTS
-NUM_STEPS = 150
-NUM_CHANNELS = 4
-TIMESTEP = tm.TIMESTEP
-SUBSTEPS = 4
-CONTROL_DT = TIMESTEP * SUBSTEPS  # 1/30 s
-USER_POSITION = np.array([tm.USER_TORSO_X, 0.0, 0.7])
-BASE_POSITION = np.array([0.0, 0.0, tm.BASE_HEIGHT])
-# Safety bounds used by :func:`feasible` (and by library screening).
-MAX_CONTACT_FORCE = 15.0  # N, normal force on the user
-NEAR_USER_DISTANCE = 0.10  # m: closer than this counts as "near the user"
-MAX_TIP_SPEED_NEAR_USER = 1.0  # m/s
-MAX_TIP_SPEED = 10.0  # m/s anywhere: beyond this the simulation has blown up
-ENGINES = ("auto", "native", "mjx")
-MJX_CHUNK = 2048  # MJX runs padded chunks of this many trajectories: one compiled program per process
-
-_N_POINTS = NUM_SEGMENTS + 1
-_SENSOR_TENDON = slice(3 * _N_POINTS, 3 * _N_POINTS + 4)
-_SENSOR_TOUCH = 3 * _N_POINTS + 4
-
-
-@dataclasses.dataclass(frozen=True)
-class Rollout:
-    """Simulated motion, batch first; arrays are numpy. Positions in metres, world frame."""
-
-    backbone: np.ndarray  # (B, T, n_seg + 1, 3): segment origins (root first) and the tip
-    tip: np.ndarray  # (B, T, 3)
-    tip_speed: np.ndarray  # (B, T) m/s
-    tendon_length: np.ndarray  # (B, T, 4) m
-    user_distance: np.ndarray  # (B, T) m, closest backbone point to the user's surface (< 0: inside)
-    contact_force: np.ndarray  # (B, T) N, normal force on the user
-    stable: np.ndarray  # (B,) bool: finite, bounded, no blow-up
+_SENSOR_TENDON = slice(3 * NUM_POINTS, 3 * NUM_POINTS + 4)
+_SENSOR_TOUCH = 3 * NUM_POINTS + 4
 
 
 @functools.lru_cache(maxsize=4)
@@ -75,7 +25,7 @@ def load_model(path: str | None = None, contact: bool = True) -> mujoco.MjModel:
         return mujoco.MjModel.from_xml_string(tm.build_xml(contact=False))
     path = Path(path or tm.DEFAULT_PATH)
     if not path.exists():
-        raise FileNotFoundError(f"trunk model {path} not found; regenerate it with `python -m jgrounding.trunk_model`")
+        raise FileNotFoundError(f"trunk model {path} not found; regenerate it with `python -m jgrounding.sim.model`")
     return mujoco.MjModel.from_xml_path(str(path))
 
 
@@ -97,31 +47,6 @@ def validate_actuation(u) -> np.ndarray:
     return np.clip(u, 0.0, 1.0)
 
 
-def _segment_distance(p, a, b):
-    ab = b - a
-    t = np.clip(((p - a) @ ab) / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
-
-
-def user_distance(points: np.ndarray) -> np.ndarray:
-    """Distance of points ``(..., P, 3)`` to the user's surface, minimised over P -> ``(...)``."""
-    a = np.array([tm.USER_TORSO_X, 0.0, tm.USER_TORSO_Z[0]])
-    b = np.array([tm.USER_TORSO_X, 0.0, tm.USER_TORSO_Z[1]])
-    torso = _segment_distance(points, a, b) - tm.USER_TORSO_RADIUS
-    head = np.linalg.norm(points - np.array(tm.USER_HEAD[:3]), axis=-1) - tm.USER_HEAD[3]
-    return np.minimum(torso, head).min(axis=-1)
-
-
-def _finish(backbone, tendon, touch) -> Rollout:
-    tip = backbone[:, :, -1]
-    start = np.broadcast_to(BASE_POSITION - np.array([0, 0, tm.TRUNK_LENGTH]), tip[:, :1].shape)
-    tip_speed = np.linalg.norm(np.diff(np.concatenate([start, tip], 1), axis=1), axis=-1) / CONTROL_DT
-    stable = (np.all(np.isfinite(backbone), axis=(1, 2, 3)) & (np.abs(backbone).max(axis=(1, 2, 3)) < 3.0)
-              & (np.nan_to_num(tip_speed, nan=np.inf).max(axis=1) < MAX_TIP_SPEED))
-    return Rollout(backbone=backbone, tip=tip, tip_speed=tip_speed, tendon_length=tendon,
-                   user_distance=user_distance(backbone), contact_force=touch, stable=stable)
-
-
 @functools.lru_cache(maxsize=2)
 def _native_workers(contact: bool):
     model = load_model(None, contact)
@@ -135,7 +60,7 @@ def _native_workers(contact: bool):
     return model, data, state0
 
 
-def _rollout_native(u: np.ndarray, contact: bool) -> Rollout:
+def rollout_native(u: np.ndarray, contact: bool) -> Rollout:
     from mujoco import rollout as mj_rollout
 
     model, data, state0 = _native_workers(contact)
@@ -144,109 +69,7 @@ def _rollout_native(u: np.ndarray, contact: bool) -> Rollout:
     _, sensordata = mj_rollout.rollout(model, data if batch > 1 else data[0], np.tile(state0, (batch, 1)),
                                        control)
     sensordata = sensordata[:, SUBSTEPS - 1::SUBSTEPS]  # end of each control step
-    backbone = sensordata[..., : 3 * _N_POINTS].reshape(batch, steps, _N_POINTS, 3)
-    return _finish(backbone, sensordata[..., _SENSOR_TENDON], sensordata[..., _SENSOR_TOUCH])
+    backbone = sensordata[..., : 3 * NUM_POINTS].reshape(batch, steps, NUM_POINTS, 3)
+    return finish_rollout(backbone, sensordata[..., _SENSOR_TENDON], sensordata[..., _SENSOR_TOUCH])
 
 
-def resolve_engine(engine: str = "auto") -> str:
-    """``"auto"`` -> ``"mjx"`` on an accelerator backend (GPU/TPU), ``"native"`` on CPU; other names pass
-    through after validation."""
-    if engine not in ENGINES:
-        raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
-    if engine != "auto":
-        return engine
-    import jax
-
-    return "native" if jax.default_backend() == "cpu" else "mjx"
-
-
-def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
-    """Simulate actuation ``(T, 4)`` or ``(B, T, 4)`` in [0, 1]; returns a batch-first :class:`Rollout`.
-
-    ``engine``: ``"auto"`` (default: native on CPU, MJX on an accelerator), ``"native"`` (MuJoCo,
-    multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded chunks of
-    :data:`MJX_CHUNK` or the batch if smaller). ``contact=False`` removes the user's contact geometry
-    (distances are still measured).
-    """
-    engine = resolve_engine(engine)
-    u = validate_actuation(u)
-    if engine == "native":
-        return _rollout_native(u, contact)
-    from jgrounding import trunk_mjx
-
-    return trunk_mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, u.shape[0]))
-
-
-def _turning_angle(backbone: np.ndarray) -> np.ndarray:
-    """Total turning angle (rad) of the backbone polyline ``(..., P, 3)``, root axis included."""
-    seg = np.diff(backbone, axis=-2)
-    down = np.broadcast_to(np.array([0.0, 0.0, -1.0]), seg[..., :1, :].shape)
-    seg = np.concatenate([down, seg], axis=-2)
-    seg = seg / np.maximum(np.linalg.norm(seg, axis=-1, keepdims=True), 1e-9)
-    cos = np.clip(np.sum(seg[..., 1:, :] * seg[..., :-1, :], axis=-1), -1.0, 1.0)
-    return np.arccos(cos).sum(axis=-1)
-
-
-def _sign_changes(x: np.ndarray, deadband: float) -> np.ndarray:
-    """Number of direction reversals of ``(B, T)`` signals, ignoring moves smaller than deadband."""
-    out = np.zeros(x.shape[0], dtype=np.int32)
-    for b in range(x.shape[0]):
-        anchor, direction, count = x[b, 0], 0, 0
-        for v in x[b, 1:]:
-            d = v - anchor
-            if abs(d) >= deadband:
-                s = 1 if d > 0 else -1
-                if direction and s != direction:
-                    count += 1
-                direction, anchor = s, v
-            elif direction and (v - anchor) * direction > 0:
-                anchor = v
-        out[b] = count
-    return out
-
-
-def features(r: Rollout) -> dict[str, np.ndarray]:
-    """Whole-body shape features, each ``(B,)``: reach, curl, excursions, proximity, speed, oscillation."""
-    tip = r.tip
-    rest_tip = BASE_POSITION - np.array([0.0, 0.0, tm.TRUNK_LENGTH])
-    turning = _turning_angle(r.backbone)  # (B, T)
-    return {
-        "reach_toward_user": tip[..., 0].max(axis=1) - rest_tip[0],
-        "retreat_from_user": rest_tip[0] - tip[..., 0].min(axis=1),
-        "mean_tip_x": tip[..., 0].mean(axis=1),
-        "final_tip_x": tip[:, -1, 0],
-        "curvature_max": turning.max(axis=1),
-        "curvature_mean": turning.mean(axis=1),
-        "curl_final": turning[:, -1],
-        "lateral_excursion": np.ptp(tip[..., 1], axis=1),
-        "vertical_excursion": np.ptp(tip[..., 2], axis=1),
-        "max_tip_height": tip[..., 2].max(axis=1),
-        "final_tip_height": tip[:, -1, 2],
-        "min_user_distance": r.user_distance.min(axis=1),
-        "final_user_distance": r.user_distance[:, -1],
-        "peak_tip_speed": r.tip_speed.max(axis=1),
-        "mean_tip_speed": r.tip_speed.mean(axis=1),
-        "max_contact_force": r.contact_force.max(axis=1),
-        "contact_fraction": (r.contact_force > 1e-3).mean(axis=1),
-        "lateral_reversals": _sign_changes(tip[..., 1], 0.03),
-        "vertical_reversals": _sign_changes(tip[..., 2], 0.02),
-    }
-
-
-def feasible(r: Rollout) -> np.ndarray:
-    """``(B,)`` bool: stable, contact force within ``MAX_CONTACT_FORCE``, slow tip near the user."""
-    near = r.user_distance < NEAR_USER_DISTANCE
-    fast_near = np.any(near & (r.tip_speed > MAX_TIP_SPEED_NEAR_USER), axis=1)
-    return r.stable & (r.contact_force.max(axis=1) <= MAX_CONTACT_FORCE) & ~fast_near
-
-
-def feasibility_margin(r: Rollout) -> np.ndarray:
-    """``(B,)`` float: the smallest relative slack of :func:`feasible`'s bounds, ``min(1 - peak force /
-    MAX_CONTACT_FORCE, 1 - peak tip speed near the user / MAX_TIP_SPEED_NEAR_USER)``; -1 when unstable.
-    ``margin >= 0`` exactly when the sample is feasible; larger is safer (1 = no contact, tip never fast
-    near the user)."""
-    near = r.user_distance < NEAR_USER_DISTANCE
-    speed_near = np.where(near, np.nan_to_num(r.tip_speed, nan=np.inf), 0.0).max(axis=1)
-    force = np.nan_to_num(r.contact_force, nan=np.inf).max(axis=1)
-    margin = np.minimum(1.0 - force / MAX_CONTACT_FORCE, 1.0 - speed_near / MAX_TIP_SPEED_NEAR_USER)
-    return np.where(r.stable, margin, -1.0)

@@ -24,8 +24,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from jgrounding import trunk
-from jgrounding import trunk_model as tm
+from jgrounding import sim
+from jgrounding.sim import model as tm
 
 log = logging.getLogger(__name__)
 WIDTH, HEIGHT = 480, 360
@@ -91,7 +91,7 @@ def _fade_user(model, renderer) -> None:
 
 def _frames_mujoco(u: np.ndarray, steps: list[int], views: tuple[float, ...],
                    ghost: bool) -> list[list[np.ndarray]]:
-    model = trunk.load_model()
+    model = sim.load_model()
     data, rest = mujoco.MjData(model), mujoco.MjData(model)
     mujoco.mj_forward(model, rest)
     renderer = mujoco.Renderer(model, HEIGHT, WIDTH)
@@ -99,7 +99,7 @@ def _frames_mujoco(u: np.ndarray, steps: list[int], views: tuple[float, ...],
     try:
         for t in range(max(want) + 1):
             data.ctrl[:] = u[t]
-            mujoco.mj_step(model, data, nstep=trunk.SUBSTEPS)
+            mujoco.mj_step(model, data, nstep=sim.SUBSTEPS)
             if t in want:
                 tiles = []
                 for cam in cams:
@@ -142,8 +142,8 @@ def _frames_matplotlib(u: np.ndarray, steps: list[int], views: tuple[float, ...]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    backbone = trunk.rollout(u).backbone[0]
-    rest = trunk.rollout(np.zeros((1, trunk.NUM_CHANNELS))).backbone[0, 0]
+    backbone = sim.rollout(u).backbone[0]
+    rest = sim.rollout(np.zeros((1, sim.NUM_CHANNELS))).backbone[0, 0]
     frames = []
     for t in steps:
         tiles = []
@@ -155,7 +155,7 @@ def _frames_matplotlib(u: np.ndarray, steps: list[int], views: tuple[float, ...]
             plot_backbone(ax, backbone[t])
             # matplotlib's azim places the camera, MuJoCo's points it: they differ by 180 degrees.
             ax.view_init(elev=-ELEVATION, azim=azimuth - 180.0)
-            ax.set_title(f"t = {t * trunk.CONTROL_DT:.2f} s", fontsize=8)
+            ax.set_title(f"t = {t * sim.CONTROL_DT:.2f} s", fontsize=8)
             fig.canvas.draw()
             tiles.append(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
             plt.close(fig)
@@ -176,7 +176,7 @@ def frames(u, steps: list[int], azimuth=SIDE_VIEW, backend: str = "auto", *, lab
     if backend not in ("auto", "mujoco", "matplotlib"):
         raise ValueError(f"unknown backend {backend!r}; valid: auto, mujoco, matplotlib")
     views = _as_views(azimuth)
-    u = trunk.validate_actuation(u)[0]
+    u = sim.validate_actuation(u)[0]
     steps = [int(t) for t in steps]
     if not steps or min(steps) < 0 or max(steps) >= u.shape[0]:
         raise ValueError(f"steps must be control steps in 0..{u.shape[0] - 1}, got {steps}")
@@ -208,7 +208,7 @@ def _png(frame: np.ndarray, colors: int | None = None) -> bytes:
 
 def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS) -> Path:
     """PNG of the posture at control ``step`` of actuation ``(150, 4)`` (default: both views, labelled)."""
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     n = np.asarray(u).shape[-2]
     (img,), _ = frames(u, [step % n], azimuth, labels=True)
@@ -222,7 +222,7 @@ def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS
     """
     from PIL import Image
 
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     n = np.asarray(u).shape[-2]
     imgs, _ = frames(u, list(range(0, n, stride)) + [n - 1], azimuth, labels=True)
@@ -244,7 +244,7 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
     views = _as_views(azimuth)
     if steps is None:
         n = np.asarray(u).shape[-2]
-        steps = KEYFRAME_STEPS if n == trunk.NUM_STEPS else tuple(np.linspace(0, n - 1, 6).astype(int)[1:])
+        steps = KEYFRAME_STEPS if n == sim.NUM_STEPS else tuple(np.linspace(0, n - 1, 6).astype(int)[1:])
     imgs, _ = frames(u, list(steps), views)
     w, h = int(WIDTH * scale), int(HEIGHT * scale)
     rows = []
@@ -252,7 +252,7 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
         tiles = []
         for c, (img, t) in enumerate(zip(imgs, steps)):
             tile = np.asarray(Image.fromarray(img[:, v * WIDTH:(v + 1) * WIDTH]).resize((w, h), Image.LANCZOS))
-            text = f"t = {t * trunk.CONTROL_DT:.1f} s" + (f"\n{VIEW_NAMES.get(a, f'azimuth {a:g}')}" if c == 0 else "")
+            text = f"t = {t * sim.CONTROL_DT:.1f} s" + (f"\n{VIEW_NAMES.get(a, f'azimuth {a:g}')}" if c == 0 else "")
             tiles.append(np.pad(_label(tile, text, size=13), ((0, 2), (0, 2), (0, 0)), constant_values=255))
         rows.append(np.concatenate(tiles, axis=1))
     return np.concatenate(rows, axis=0)[:-2, :-2]
@@ -260,6 +260,6 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
 
 def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS) -> Path:
     """PNG of :func:`keyframes`: the motion of actuation ``(150, 4)`` at a glance."""
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     return write_atomic(path, _png(keyframes(u, steps, azimuth), colors=256))

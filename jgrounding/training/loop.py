@@ -16,7 +16,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from jgrounding import distributed, flows
+from jgrounding.training import distributed
+
+from jgrounding.generators import flows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -114,7 +116,7 @@ def train(states: TrainState, step, config: TrainConfig, *, desc: str = "train",
           on_chunk: Callable | None = None, mesh=None) -> tuple[TrainState, jax.Array]:
     """Run ``config.steps`` updates (minus those already done) of vmapped ``states`` in compiled chunks.
 
-    ``mesh`` (:func:`jgrounding.distributed.make_mesh`): the seeds are split over its devices, padded
+    ``mesh`` (:func:`jgrounding.training.distributed.make_mesh`): the seeds are split over its devices, padded
     to a multiple of the device count with copies of seed 0 that are dropped again; ``on_chunk`` and
     the caller then receive the full, unpadded states on every process.
     """

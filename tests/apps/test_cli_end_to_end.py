@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jgrounding import export, safety
+from jgrounding import safety
 
-ROOT = Path(__file__).resolve().parent.parent
+from jgrounding.apps import export
+
+ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(ROOT)}
 
 
@@ -78,7 +80,7 @@ def test_quick_ablation_end_to_end(tmp_path):
 def test_interactive_loop_keeps_history(tmp_path):
     import io
 
-    from jgrounding import interact
+    from jgrounding.apps import interact
 
     out = io.StringIO()
     interact.main(["--out", str(tmp_path)], stdin=io.StringIO("Wave hello to the user!\n\n:history\n:quit\n"),

@@ -3,12 +3,13 @@ import json
 import numpy as np
 import pytest
 
-from jgrounding import export
+from jgrounding import io
+from jgrounding.apps import export
 
 
 def test_command_stream_round_trip(tmp_path):
     u = 0.5 + 0.4 * np.sin(np.linspace(0, 3, 150))[:, None] * np.ones(4)
-    path = export.write_atomic(tmp_path / "c.csv", export.command_stream_csv(u, control_dt=1 / 30, meta={"intent": "nodding"}))
+    path = io.write_atomic(tmp_path / "c.csv", export.command_stream_csv(u, control_dt=1 / 30, meta={"intent": "nodding"}))
     header, back = export.read_command_stream_csv(path)
     np.testing.assert_allclose(back, u, atol=1e-6)
     assert header["control_rate_hz"] == pytest.approx(30.0) and header["intent"] == "nodding"
@@ -26,6 +27,6 @@ def test_unsafe_commands_are_made_safe_or_refused():
 
 
 def test_atomic_write_leaves_no_temp_files(tmp_path):
-    export.write_atomic(tmp_path / "a.txt", "x")
-    export.write_atomic(tmp_path / "a.txt", "y")
+    io.write_atomic(tmp_path / "a.txt", "x")
+    io.write_atomic(tmp_path / "a.txt", "y")
     assert (tmp_path / "a.txt").read_text() == "y" and len(list(tmp_path.iterdir())) == 1

@@ -7,8 +7,11 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import checkpoints, flows, methods, safety, training
-from jgrounding.models import CNNRegressor, VelocityMLP
+from jgrounding import safety, training
+from jgrounding.training import checkpoints
+from jgrounding.generators import flows
+from jgrounding.generators import methods
+from jgrounding.generators.networks import CNNRegressor, VelocityMLP
 from flax import nnx
 
 MODES = jnp.array([[-0.8, 0.8], [0.8, -0.8]])  # two modes for the same condition

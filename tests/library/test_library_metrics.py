@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import library, metrics, primitives, safety
+from jgrounding import library, safety
+from jgrounding.evaluation import metrics
+from jgrounding.library import primitives
 
 
 @pytest.fixture(scope="module")

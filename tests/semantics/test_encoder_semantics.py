@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import encoder, semantics
+from jgrounding import semantics
+from jgrounding.semantics import encoder
 
 REF = Path(__file__).with_name("data") / "minilm_reference.npz"
 

@@ -6,7 +6,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 import pytest
 
 import jgrounding as jg
-from jgrounding import mllm
+from jgrounding.semantics import mllm
 
 
 class FakeServer:

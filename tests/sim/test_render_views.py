@@ -5,7 +5,9 @@ import ctypes.util
 import numpy as np
 import pytest
 
-from jgrounding import render, trunk
+from jgrounding import sim
+
+from jgrounding.sim import render
 
 
 def held(level, steps: int = 60) -> np.ndarray:
@@ -36,7 +38,7 @@ def _moved_column(u, view) -> float:
 
 @needs_gl
 def test_side_view_puts_the_user_on_the_right():
-    assert trunk.rollout(held([0.6, 0, 0, 0])).tip[0, -1, 0] > 0.1  # tendon 0 bends toward the user (+x)
+    assert sim.rollout(held([0.6, 0, 0, 0])).tip[0, -1, 0] > 0.1  # tendon 0 bends toward the user (+x)
     toward = _moved_column(held([0.6, 0, 0, 0]), render.SIDE_VIEW)
     away = _moved_column(held([0, 0, 0.6, 0]), render.SIDE_VIEW)
     assert away < toward

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from jgrounding import trunk
+from jgrounding import sim
 
 
 def hold(pulls, steps=150):
@@ -10,14 +10,14 @@ def hold(pulls, steps=150):
 
 
 def test_model_structure():
-    m = trunk.load_model()
-    assert m.nu == 4 and m.ntendon == 4 and m.njnt == 3 * trunk.NUM_SEGMENTS
-    assert trunk.CONTROL_DT == pytest.approx(1 / 30)
+    m = sim.load_model()
+    assert m.nu == 4 and m.ntendon == 4 and m.njnt == 3 * sim.NUM_SEGMENTS
+    assert sim.CONTROL_DT == pytest.approx(1 / 30)
 
 
 def test_rollout_shapes_and_rest_posture():
-    r = trunk.rollout(np.zeros((2, 150, 4)))
-    assert r.backbone.shape == (2, 150, trunk.NUM_SEGMENTS + 1, 3)
+    r = sim.rollout(np.zeros((2, 150, 4)))
+    assert r.backbone.shape == (2, 150, sim.NUM_SEGMENTS + 1, 3)
     assert r.tip.shape == (2, 150, 3) and r.tendon_length.shape == (2, 150, 4)
     assert r.stable.all() and np.abs(r.tip[:, -1, :2]).max() < 1e-3  # hangs straight down
     assert (r.contact_force == 0).all()
@@ -26,7 +26,7 @@ def test_rollout_shapes_and_rest_posture():
 def test_each_tendon_bends_toward_its_side_and_cocontraction_retracts():
     u = np.stack([hold([0.6, 0, 0, 0]), hold([0, 0.6, 0, 0]), hold([0, 0, 0.6, 0]), hold([0, 0, 0, 0.6]),
                   hold([0.6, 0.6, 0.6, 0.6]), hold([0, 0, 0, 0])])
-    tip = trunk.rollout(u, contact=False).tip[:, -1]
+    tip = sim.rollout(u, contact=False).tip[:, -1]
     assert tip[0, 0] > 0.15 and tip[2, 0] < -0.15  # toward / away from the user (x)
     assert tip[1, 1] > 0.15 and tip[3, 1] < -0.15  # left / right (y)
     assert tip[4, 2] > tip[5, 2] + 0.1 and np.abs(tip[4, :2]).max() < 0.01  # shorter, straight
@@ -34,22 +34,22 @@ def test_each_tendon_bends_toward_its_side_and_cocontraction_retracts():
 
 def test_reaching_the_user_makes_gentle_contact_and_a_jump_is_infeasible():
     ramp = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None] * np.array([1.0, 0, 0, 0])
-    r = trunk.rollout(np.stack([ramp, hold([0.8, 0, 0, 0]), hold([0, 0, 0, 0])]))  # slow approach, step, rest
+    r = sim.rollout(np.stack([ramp, hold([0.8, 0, 0, 0]), hold([0, 0, 0, 0])]))  # slow approach, step, rest
     assert r.contact_force[0].max() > 0 and r.user_distance[0].min() < 0.03
-    assert trunk.feasible(r).tolist() == [True, False, True]  # the step hits the user too fast
-    margin = trunk.feasibility_margin(r)
-    assert ((margin >= 0) == trunk.feasible(r)).all() and margin[2] == pytest.approx(1.0)  # rest: all slack
+    assert sim.feasible(r).tolist() == [True, False, True]  # the step hits the user too fast
+    margin = sim.feasibility_margin(r)
+    assert ((margin >= 0) == sim.feasible(r)).all() and margin[2] == pytest.approx(1.0)  # rest: all slack
 
 
 def test_auto_engine_is_native_on_cpu():
     import jax
 
-    assert trunk.resolve_engine("auto") == ("native" if jax.default_backend() == "cpu" else "mjx")
-    assert trunk.resolve_engine("mjx") == "mjx"
+    assert sim.resolve_engine("auto") == ("native" if jax.default_backend() == "cpu" else "mjx")
+    assert sim.resolve_engine("mjx") == "mjx"
 
 
 def test_features_cover_the_shape_vocabulary():
-    f = trunk.features(trunk.rollout(np.stack([hold([0.5, 0, 0, 0]), hold([0, 0, 0.5, 0])])))
+    f = sim.features(sim.rollout(np.stack([hold([0.5, 0, 0, 0]), hold([0, 0, 0.5, 0])])))
     for k in ("reach_toward_user", "curvature_max", "lateral_excursion", "vertical_excursion",
               "min_user_distance", "peak_tip_speed"):
         assert f[k].shape == (2,)
@@ -62,44 +62,44 @@ def test_features_cover_the_shape_vocabulary():
 ])
 def test_bad_commands_raise(bad, match):
     with pytest.raises(ValueError, match=match):
-        trunk.rollout(bad)
+        sim.rollout(bad)
 
 
 def test_contact_pruning_is_exact():
     """Only the distal segments have contact pairs with the user: the others can never reach it."""
     import itertools
 
-    from jgrounding import trunk_model as tm
+    from jgrounding.sim import model as tm
 
     levels = [np.array(c, float) for c in itertools.product([0, 0.5, 1.0], repeat=4)]
     ramp = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None]
     u = np.stack([hold(c) for c in levels] + [ramp * c for c in levels])
-    bb = trunk.rollout(u, contact=False).backbone  # no contact: the deepest reach toward the user
+    bb = sim.rollout(u, contact=False).backbone  # no contact: the deepest reach toward the user
     first = tm.NUM_SEGMENTS - tm.CONTACT_SEGMENTS  # segments first.. have pairs; points 0..first bound the rest
     a, b = np.array([tm.USER_TORSO_X, 0, tm.USER_TORSO_Z[0]]), np.array([tm.USER_TORSO_X, 0, tm.USER_TORSO_Z[1]])
-    torso = trunk._segment_distance(bb[:, :, : first + 1], a, b) - tm.USER_TORSO_RADIUS - tm.BASE_RADIUS
+    torso = sim.segment_distance(bb[:, :, : first + 1], a, b) - tm.USER_TORSO_RADIUS - tm.BASE_RADIUS
     assert torso.min() > 0.01
     head = np.linalg.norm(bb - np.array(tm.USER_HEAD[:3]), axis=-1) - tm.USER_HEAD[3] - tm.BASE_RADIUS
     assert head.min() > 0.1
-    assert trunk.load_model().npair == tm.CONTACT_SEGMENTS and trunk.load_model(None, False).npair == 0
+    assert sim.load_model().npair == tm.CONTACT_SEGMENTS and sim.load_model(None, False).npair == 0
 
 
 def test_unknown_engine():
     with pytest.raises(ValueError, match="native, mjx"):
-        trunk.rollout(np.zeros((150, 4)), engine="bullet")
+        sim.rollout(np.zeros((150, 4)), engine="bullet")
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("contact", [True, False], ids=["with_user_contact", "without_user_contact"])
 def test_mjx_agrees_with_native(contact):
-    from jgrounding import trunk_mjx
+    from jgrounding.sim import mjx as trunk_mjx
 
     trunk_mjx.enable_compilation_cache()
     t = np.linspace(0, 1, 150)[:, None]
     reach = np.clip(1.5 * t, 0, 1)
     u = np.stack([np.hstack([reach, 0 * t, 0 * t, 0.1 * t]),  # reaches the user and presses on it
                   np.hstack([0 * t, 0.5 + 0.4 * np.sin(6 * t), 0.4 * t, 0 * t])])  # swings away, no contact
-    a, b = trunk.rollout(u, engine="mjx", contact=contact), trunk.rollout(u, engine="native", contact=contact)
+    a, b = sim.rollout(u, engine="mjx", contact=contact), sim.rollout(u, engine="native", contact=contact)
     err = np.linalg.norm(a.tip - b.tip, axis=-1)
     assert err[:, 29].max() < 1e-3  # 1 mm after 1 s
     assert err.max() < 5e-3  # 5 mm over the whole 5 s

@@ -15,7 +15,10 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import checkpoints, methods, safety, sampling
+from jgrounding import safety
+from jgrounding.training import checkpoints
+from jgrounding.generators import methods
+from jgrounding.generators import sampling
 
 
 @pytest.fixture(scope="module")

@@ -12,15 +12,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jgrounding import distributed
+from jgrounding.training import distributed
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 WORKER = r"""
 import json
 import jax, jax.numpy as jnp, numpy as np
 import jgrounding as jg
-from jgrounding import distributed, methods, semantics, training
+from jgrounding import semantics, training
+from jgrounding.training import distributed
+from jgrounding.generators import methods
 
 out = {"device_count": jax.device_count(), "initialized": distributed.initialize()}
 mesh = distributed.make_mesh()
@@ -58,7 +60,7 @@ out["gen_shape"] = list(u4.shape)
 out["gen_max_diff"] = float(np.abs(u1 - u4).max())
 out["gen_rounded_max_diff"] = float(np.abs(u1 - u4r).max())
 out["gen_safe"] = bool(jg.safety.is_safe(u4))
-fn = methods._generate_fn(sharded.method, sharded.graphdef, "euler", 50, 4, mesh)
+fn = methods.generate_fn(sharded.method, sharded.graphdef, "euler", 50, 4, mesh)
 y = fn(distributed.replicate(sharded.params, mesh), *distributed.shard((jnp.asarray(cond[:12]), jnp.asarray(z[:12])), mesh),
        distributed.replicate(jax.random.split(jax.random.key(0), 5), mesh))
 out["gen_shard_shape"] = list(y.addressable_shards[0].data.shape)
@@ -72,7 +74,9 @@ MULTI_HOST = r"""
 import json, sys
 import jax, numpy as np
 import jgrounding as jg
-from jgrounding import distributed, methods, training
+from jgrounding import training
+from jgrounding.training import distributed
+from jgrounding.generators import methods
 
 assert distributed.initialize()  # from JAX_COORDINATOR_ADDRESS / JAX_NUM_PROCESSES / JAX_PROCESS_ID
 mesh = distributed.make_mesh()
@@ -181,7 +185,8 @@ def test_multi_host_job_equals_one_process(tmp_path):
     import jax
 
     import jgrounding as jg
-    from jgrounding import methods, training
+    from jgrounding import training
+    from jgrounding.generators import methods
 
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))

@@ -10,9 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jgrounding import checkpoints, distributed, methods
+from jgrounding.training import checkpoints
 
-ROOT = Path(__file__).resolve().parent.parent
+from jgrounding.training import distributed
+
+from jgrounding.generators import methods
+
+ROOT = Path(__file__).resolve().parents[2]
 STEPS, CHUNK = 2000, 100
 
 

@@ -4,8 +4,11 @@ import json
 import numpy as np
 import pytest
 
-from jgrounding import importer, load_library, splines
-from jgrounding.importer import DemonstrationError, ImportConfig, import_folder
+from jgrounding import load_library
+
+from jgrounding.actuation import splines
+from jgrounding.library import importer
+from jgrounding.library.importer import DemonstrationError, ImportConfig, import_folder
 
 TUPLES = (("nodding", "moderate"), ("greeting", "emphatic"))
 
@@ -187,7 +190,7 @@ def test_cli_refuses_missing_or_conflicting_limits(tmp_path, capsys):
 @pytest.mark.parametrize("fmt", ["csv", "json"])
 def test_command_stream_round_trip_export_import_reconstruct(tmp_path, fmt):
     """export -> import -> reconstruct gives the exported trajectory back (6-digit files: ~1e-6)."""
-    from jgrounding import export
+    from jgrounding.apps import export
 
     rng = np.random.default_rng(3)
     folder = tmp_path / "streams"

@@ -9,8 +9,10 @@ import pytest
 from flax import nnx
 
 import jgrounding as jg
-from jgrounding import flows, methods, semantics, training
-from jgrounding.models import VelocityMLP
+from jgrounding import semantics, training
+from jgrounding.generators import flows
+from jgrounding.generators import methods
+from jgrounding.generators.networks import VelocityMLP
 
 
 @pytest.mark.parametrize("name,mean", [("uniform", 0.5), ("logit_normal", 0.5),

@@ -4,7 +4,9 @@ import pytest
 
 import jax
 import jgrounding as jg
-from jgrounding import importer, library, methods, sampling
+from jgrounding import importer, library
+from jgrounding.generators import methods
+from jgrounding.generators import sampling
 from jgrounding.training import TrainConfig
 from test_importer import write_folder
 

@@ -5,7 +5,7 @@ round
 
 1. draws ``candidates`` samples for each of the 64 (intent, intensity) tuples from the current model;
 2. rolls them all out in one batch (:func:`jgrounding.trunk_eval.margins`, ``engine="auto"``) and keeps the
-   ones whose feasibility margin (:func:`jgrounding.trunk.feasibility_margin`) is at least
+   ones whose feasibility margin (:func:`jgrounding.sim.feasibility_margin`) is at least
    ``margin``: a buffer inside the bound, so the model learns to stay away from it, not to graze it;
 3. fine-tunes the model with the rectified-flow loss (Eq. rf_loss) on the kept samples' controls
    (Eq. ci) together with the demonstration library's training pairs (which anchor success).
@@ -25,7 +25,14 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import flows, methods, splines, training, trunk_eval
+from jgrounding import training
+from jgrounding.evaluation import physics as trunk_eval
+
+from jgrounding.generators import flows
+
+from jgrounding.generators import methods
+
+from jgrounding.actuation import splines
 from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
 
 METHOD = "tuple_spline_rf"
@@ -67,7 +74,7 @@ def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: Phy
       key: randomness of candidate generation and fine-tuning.
       intent_emb: ``(16, 384)`` intent embeddings (the tuple condition).
     Returns:
-      ``(trained, report)``: a :class:`jgrounding.methods.Trained` of the same method and seeds, and per
+      ``(trained, report)``: a :class:`jgrounding.generators.methods.Trained` of the same method and seeds, and per
       round the candidates simulated, the fraction kept and the fraction feasible.
     """
     if teacher.method != METHOD:

@@ -17,7 +17,7 @@ What it does, in order: reads and validates every file (:class:`DemonstrationErr
 the line and the column of the first problem; nothing is repaired), maps each tendon from its declared
 limits to [0, 1] (slack -> 0, full pull -> 1), resamples linearly to T = 150 steps over the motion's own
 duration, optionally reduces by Eq. (ci) (``--controls P``: ``u = make_safe(R(fit(u)))``, exactly like
-the built-in library), screens with :func:`jgrounding.screening.screen` (bounds, slew, smoothness; and
+the built-in library), screens with :func:`jgrounding.library.screening.screen` (bounds, slew, smoothness; and
 simulation on the 4-tendon trunk with ``--simulate`` when the data are for our trunk model), splits
 every (intent, intensity) tuple into train / held-out realizations, and writes the npz and its card
 (:func:`jgrounding.library.save`, atomically). ``--drop-invalid`` drops bad files instead of stopping,
@@ -340,7 +340,8 @@ def _reduce(x: np.ndarray, num_controls: int | None) -> tuple[np.ndarray, np.nda
     built-in library; without it ``u`` is the recording itself (screened, never clamped) and ``c`` its
     Eq. (ci) controls at P = 4 for the spline methods.
     """
-    from jgrounding import safety, splines
+    from jgrounding import safety
+    from jgrounding.actuation import splines
 
     c = np.asarray(splines.fit(x.astype(np.float32), num_controls=num_controls or splines.NUM_CONTROLS))
     if num_controls is None:
@@ -364,7 +365,7 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
     Raises :class:`DemonstrationError` on the first bad file (or, with ``config.drop_invalid``, lists it in
     ``card["dropped"]`` and goes on) and ``ValueError`` for an impossible configuration.
     """
-    from jgrounding import screening
+    from jgrounding.library import screening
 
     folder = Path(folder)
     if not folder.is_dir():

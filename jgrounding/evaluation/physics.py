@@ -7,10 +7,10 @@ Table II's physics columns (``experiments.ablation``) and the physics-aware trai
 - **shape success**: fraction of samples whose shape RMS to the held-out reference's simulated motion
   is within ``tau_shape``, a tolerance calibrated from the library's own spread (:func:`calibrate`);
 - **shape diversity**: mean pairwise shape RMS of a tuple's K samples (the analogue of Div.);
-- **feasibility**: :func:`jgrounding.trunk.feasible` (stable, contact force, tip speed near the user).
+- **feasibility**: :func:`jgrounding.sim.feasible` (stable, contact force, tip speed near the user).
 
 :func:`simulate_samples` rolls out a whole ``(N, K, 150, 4)`` batch through
-:func:`jgrounding.trunk.rollout` (``engine="auto"``), in chunks so memory stays bounded, and simulates
+:func:`jgrounding.sim.rollout` (``engine="auto"``), in chunks so memory stays bounded, and simulates
 each distinct trajectory once: a deterministic generator's K samples are identical, so its 30
 copies cost one rollout (exact, not an approximation).
 """
@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from jgrounding import trunk
+from jgrounding import sim
 
 CHUNK = 1024  # trajectories per rollout call: ~40 MB of backbone in float64
 
@@ -97,10 +97,10 @@ def calibrate(u: np.ndarray, backbone: np.ndarray, intent: np.ndarray, intensity
 
 
 def margins(u: np.ndarray, *, engine: str = "auto") -> np.ndarray:
-    """Feasibility margin (:func:`jgrounding.trunk.feasibility_margin`) of every trajectory ``u (B, T, 4)``,
+    """Feasibility margin (:func:`jgrounding.sim.feasibility_margin`) of every trajectory ``u (B, T, 4)``,
     rolled out in chunks of :data:`CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible."""
-    engine = trunk.resolve_engine(engine)
-    return np.concatenate([trunk.feasibility_margin(trunk.rollout(u[i:i + CHUNK], engine=engine))
+    engine = sim.resolve_engine(engine)
+    return np.concatenate([sim.feasibility_margin(sim.rollout(u[i:i + CHUNK], engine=engine))
                            for i in range(0, len(u), CHUNK)])
 
 
@@ -108,7 +108,7 @@ def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engi
     """Simulate every sample ``u (N, K, T, 4)`` and score it against ``reference (N, T, P, 3)``.
 
     Returns a dict: ``shape_rms (N, K)`` metres, ``shape_success (N, K)`` bool (``<= tau_m``),
-    ``feasible (N, K)`` bool, ``margin (N, K)`` (:func:`jgrounding.trunk.feasibility_margin`),
+    ``feasible (N, K)`` bool, ``margin (N, K)`` (:func:`jgrounding.sim.feasibility_margin`),
     ``diversity (N,)`` mean pairwise shape RMS of each tuple's K samples, ``simulated`` (distinct
     trajectories rolled out), ``seconds`` (wall time of the rollouts) and ``engine`` (the one used).
     """
@@ -117,16 +117,16 @@ def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engi
     # Identical samples (a deterministic generator's K copies) are simulated once.
     uniq, inverse = np.unique(flat.reshape(n * k, -1), axis=0, return_inverse=True)
     uniq = uniq.reshape(-1, *u.shape[2:])
-    engine = trunk.resolve_engine(engine)
+    engine = sim.resolve_engine(engine)
     backbone = np.empty((len(uniq),) + reference.shape[1:], np.float32)
     margin = np.empty(len(uniq))
     feasible = np.empty(len(uniq), bool)
     t0 = time.perf_counter()
     for i in range(0, len(uniq), CHUNK):
-        r = trunk.rollout(uniq[i:i + CHUNK], engine=engine)
+        r = sim.rollout(uniq[i:i + CHUNK], engine=engine)
         backbone[i:i + CHUNK] = r.backbone
-        margin[i:i + CHUNK] = trunk.feasibility_margin(r)
-        feasible[i:i + CHUNK] = trunk.feasible(r)
+        margin[i:i + CHUNK] = sim.feasibility_margin(r)
+        feasible[i:i + CHUNK] = sim.feasible(r)
     seconds = time.perf_counter() - t0
     inverse = inverse.reshape(-1)
     bb = backbone[inverse].reshape(n, k, *reference.shape[1:])

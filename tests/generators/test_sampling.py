@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import safety, sampling
+from jgrounding import safety
+from jgrounding.generators import sampling
 
 
 def test_sequences_of_tuples_give_n_k_trajectories():

@@ -1,0 +1,1 @@
+"""Evaluation, Sec. IV-A.3: RMS, success, diversity, coverage and the reference baselines."""

@@ -1,0 +1,3 @@
+from jgrounding.semantics import main
+
+raise SystemExit(main())

@@ -1,0 +1,65 @@
+"""The trunk in simulation: batched rollouts of actuation ``(B, 150, 4)`` on MuJoCo (native) or MJX.
+
+Two engines behind one function, :func:`rollout`, and one choice between them, ``engine="auto"``
+(the default):
+
+- ``"native"``: ``mujoco.rollout`` over the batch, multi-threaded, reading the backbone, tendon
+  lengths and user contact force from sensors. On CPU it is the fast path: about 10x MJX's physics
+  steps/s on this 2-core CPU (``python -m experiments.bench trunk`` prints both, for the ablation's
+  batch), and it needs no compilation.
+- ``"mjx"``: ``jit(vmap(lax.scan))`` over control steps with the physics substeps inside, compiled
+  once per chunk size (padded chunks of :data:`MJX_CHUNK`). It is the engine that scales on
+  accelerators; on CPU it serves as a check (the two agree to float precision).
+- ``"auto"``: ``"mjx"`` when JAX's default backend is an accelerator (GPU/TPU), else ``"native"``
+  (:func:`resolve_engine`). Every caller in the project (ablation, screened sampling, physics-aware
+  training) goes through it, so one flag decides the engine everywhere.
+
+Conventions (fixed; the library, the ablation and the CLI rely on them): the trunk hangs from its
+base at ``BASE_HEIGHT``; the user stands in front at +x; tendon 0 faces the user (+x), 1 the robot's
+left (+y), 2 away (-x), 3 right (-y); pulling tendon j bends the trunk toward side j, all four
+together shorten it. One control step lasts ``CONTROL_DT`` = 1/30 s (``SUBSTEPS`` physics steps), so
+150 steps are 5 s of motion. Commands must be finite and inside [0, 1] (``ValueError`` otherwise):
+this function simulates what it is given; clamping belongs to :mod:`jgrounding.safety` alone.
+"""
+
+from __future__ import annotations
+
+from jgrounding.sim.measures import (  # noqa: F401  (re-exported: the simulator's public surface)
+    BASE_POSITION, CONTROL_DT, MAX_CONTACT_FORCE, MAX_TIP_SPEED, MAX_TIP_SPEED_NEAR_USER, NEAR_USER_DISTANCE,
+    NUM_CHANNELS, NUM_POINTS, NUM_SEGMENTS, NUM_STEPS, SUBSTEPS, TIMESTEP,
+    USER_POSITION, Rollout, feasibility_margin, feasible, features, finish_rollout, segment_distance,
+    turning_angle, user_distance,
+)
+from jgrounding.sim.native import load_model, rollout_native, validate_actuation  # noqa: F401
+
+ENGINES = ("auto", "native", "mjx")
+MJX_CHUNK = 2048  # MJX runs padded chunks of this many trajectories: one compiled program per process
+
+
+def resolve_engine(engine: str = "auto") -> str:
+    """``"auto"`` -> ``"mjx"`` on an accelerator backend (GPU/TPU), ``"native"`` on CPU; other names pass
+    through after validation."""
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
+    if engine != "auto":
+        return engine
+    import jax
+
+    return "native" if jax.default_backend() == "cpu" else "mjx"
+
+
+def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
+    """Simulate actuation ``(T, 4)`` or ``(B, T, 4)`` in [0, 1]; returns a batch-first :class:`Rollout`.
+
+    ``engine``: ``"auto"`` (default: native on CPU, MJX on an accelerator), ``"native"`` (MuJoCo,
+    multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded chunks of
+    :data:`MJX_CHUNK` or the batch if smaller). ``contact=False`` removes the user's contact geometry
+    (distances are still measured).
+    """
+    engine = resolve_engine(engine)
+    u = validate_actuation(u)
+    if engine == "native":
+        return rollout_native(u, contact)
+    from jgrounding.sim import mjx
+
+    return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, u.shape[0]))
