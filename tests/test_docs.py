@@ -30,7 +30,7 @@ def test_mllm_page_matches_the_client():
     assert json.loads(_block(text, "schema")) == mllm.SCHEMA
     spec = mllm.grounding_specification().replace(json.dumps(mllm.SCHEMA), "<the schema above, on one line>")
     assert _block(text, "spec").strip() == spec.strip()
-    source = (ROOT / "jgrounding" / "mllm.py").read_text()
+    source = (ROOT / "jgrounding" / "semantics" / "mllm.py").read_text()
     assert set(re.findall(r"JGROUNDING_MLLM_\w+", text)) == set(re.findall(r"JGROUNDING_MLLM_\w+", source))
     cfg = mllm.Config()
     for default in (cfg.model, cfg.timeout_s, cfg.retries):

@@ -191,6 +191,7 @@ def test_cli_refuses_missing_or_conflicting_limits(tmp_path, capsys):
 def test_command_stream_round_trip_export_import_reconstruct(tmp_path, fmt):
     """export -> import -> reconstruct gives the exported trajectory back (6-digit files: ~1e-6)."""
     from jgrounding.apps import export
+    from jgrounding.io import write_atomic
 
     rng = np.random.default_rng(3)
     folder = tmp_path / "streams"
@@ -200,7 +201,7 @@ def test_command_stream_round_trip_export_import_reconstruct(tmp_path, fmt):
         u = np.asarray(splines.reconstruct(c))
         write = export.command_stream_csv if fmt == "csv" else export.command_stream_json
         meta = export.tuple_meta(9, 1)
-        export.write_atomic(folder / f"commands_{r}.{fmt}", write(u, control_dt=1 / 30, meta=meta))
+        write_atomic(folder / f"commands_{r}.{fmt}", write(u, control_dt=1 / 30, meta=meta))
         controls[f"commands_{r}.{fmt}"] = c
         rows.append(f"commands_{r}.{fmt},nodding,moderate")
     (folder / "manifest.csv").write_text("\n".join(rows) + "\n")
