@@ -1,7 +1,9 @@
-"""The demonstration library: coded elephant primitives, response texts, simulation screening, and the
-256-pair expert library built from them (``jg.load_library``)."""
+"""The demonstration library: coded elephant primitives, response texts, simulation screening, the
+256-pair expert library built from them (``jg.load_library``), its brackets, and the importer of a
+lab's own recordings (``python -m jgrounding.library import DIR``)."""
 
 from jgrounding.library.build import (  # noqa: F401  (re-exported: the library's public surface)
-    ASSETS, DEFAULT_PATH, FORMAT_VERSION, REGENERATE, BuildConfig, Library, Split, build, file_hash, load_library,
-    save, to_bytes,
+    ASSETS, BRACKET_RANGES, DEFAULT_PATH, FORMAT_VERSION, LIBRARY_VERSION, REGENERATE, TUPLE_MEAN_GAP, BuildConfig,
+    Library, Split, bracket_distances, bracket_violations, brackets, build, content_hash, file_hash, heldout_overlap,
+    load_library, save, to_bytes,
 )

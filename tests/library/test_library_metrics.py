@@ -83,7 +83,7 @@ def test_library_records_version_and_content_hash():
 
 @pytest.mark.slow
 def test_code_is_the_documented_design():
-    from experiments import design_signatures
+    from tools import design_signatures
 
     np.testing.assert_allclose(design_signatures.design(), primitives.CODE, atol=0.011)
 
