@@ -29,7 +29,7 @@ from jgrounding.generators import flows
 from jgrounding.generators import methods
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
-DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "checkpoints" / "tuple_spline_rf"
+DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "assets" / "checkpoints" / "tuple_spline_rf"
 MAX_SAMPLES = 4096  # samples per tuple
 MAX_TRAJECTORIES = 1 << 18  # N x K per call (~630 MB of float32 output)
 BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256, 640)  # compiled batch sizes; larger calls run chunks of 640
