@@ -40,6 +40,9 @@ PAPER = {  # Table II of the paper: success, diversity, time (ms)
 }
 PHYSICS_AWARE = "tuple_spline_rf_physics"  # the RF fine-tuned on screened samples (an extra row)
 DISPLAY = {**methods.DISPLAY, PHYSICS_AWARE: "Tuple + Spline + RF, physics-aware (RFT)"}
+_NAN = (float("nan"), float("nan"))
+NO_PHYSICS = {"shape_rms_m": _NAN, "shape_success": _NAN, "shape_diversity_m": _NAN, "feasible": _NAN,
+              "simulated": 0, "samples": 0, "physics_s": 0.0, "engine": "skipped"}  # a library with N_u != 4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,6 +59,7 @@ class AblationConfig:
     out: str = "results"
     runs: str = "runs/ablation"
     devices: int = 1  # > 1 or 0 (= all): seeds (training) and samples (evaluation) split over a device mesh
+    library: str | None = None  # library .npz (None: the shipped one), e.g. imported from recordings
 
 
 QUICK = dict(seeds=(0, 1), steps=300, k_div=8,
@@ -77,9 +81,21 @@ def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     batch_s = time.perf_counter() - t0
     r = np.asarray(metrics.rms(u, ho.u[None, :, None]))  # (S, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)  # (S,)
-    cov = np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)  # (S,)
+    cov = coverage(u, lib)  # (S,)
     lat_ms = methods.latency_ms(trained, cond_eval, ho.intensity, k_lat, steps=cfg.euler_steps)
     return u, r, div, cov, lat_ms, u.shape[0] * u.shape[1] * u.shape[2] / batch_s
+
+
+def coverage(u, lib) -> np.ndarray:
+    """Mean coverage RMS per seed of ``u (S, N, K, T, N_u)``; tuples may hold different numbers of
+    realizations (an imported library), then one tuple at a time."""
+    key = lambda s: s.intent * 4 + s.intensity  # noqa: E731
+    every_key = np.concatenate([key(lib.train), key(lib.heldout)])
+    if len({int((every_key == k).sum()) for k in key(lib.heldout)}) == 1:
+        return np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)
+    every = np.concatenate([lib.train.u, lib.heldout.u])
+    return np.stack([np.asarray(metrics.coverage(u[:, j], every[every_key == k][None])) for j, k in
+                     enumerate(key(lib.heldout))], axis=1).mean(axis=1)
 
 
 def physics(u, ref, tol, engine="auto"):
@@ -97,7 +113,12 @@ def physics(u, ref, tol, engine="auto"):
 
 def run(cfg: AblationConfig) -> dict:
     t_run = time.perf_counter()
-    lib = load_library()
+    lib = load_library(cfg.library)
+    num_tendons = int(lib.train.u.shape[-1])
+    simulate = num_tendons == sim.NUM_CHANNELS
+    if not simulate:
+        print(f"note: physics columns and the physics-aware row skipped: the built-in simulator is the "
+              f"{sim.NUM_CHANNELS}-tendon trunk, this library has N_u = {num_tendons}", flush=True)
     intent_emb = semantics.intent_embeddings()
     train_texts = semantics.embed([t for row in lib.train.texts for t in row]).reshape(len(lib.train), -1, 384)
     heldout_text = semantics.embed([row[0] for row in lib.heldout.texts])
@@ -105,18 +126,20 @@ def run(cfg: AblationConfig) -> dict:
     mesh = None if cfg.devices == 1 else distributed.make_mesh(cfg.devices or None)
     rows, per_sample, samples = {}, {}, {}
     t_lib = time.perf_counter()  # the library simulated once: held-out references + the shape tolerance
-    lib_u = np.concatenate([lib.train.u, lib.heldout.u])
-    lib_backbone = sim.rollout(lib_u, engine=cfg.engine).backbone
-    ref_backbone = lib_backbone[len(lib.train):]
-    tol = trunk_eval.calibrate(lib_u, lib_backbone, np.concatenate([lib.train.intent, lib.heldout.intent]),
-                               np.concatenate([lib.train.intensity, lib.heldout.intensity]), cfg.tau)
+    ref_backbone, tol = None, None
+    if simulate:
+        lib_u = np.concatenate([lib.train.u, lib.heldout.u])
+        lib_backbone = sim.rollout(lib_u, engine=cfg.engine).backbone
+        ref_backbone = lib_backbone[len(lib.train):]
+        tol = trunk_eval.calibrate(lib_u, lib_backbone, np.concatenate([lib.train.intent, lib.heldout.intent]),
+                                   np.concatenate([lib.train.intensity, lib.heldout.intensity]), cfg.tau)
+        print(f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise "
+              f"shape RMS, as tau = {cfg.tau} is of its actuation RMS (within-tuple median "
+              f"{tol.within_tuple_median_m:.3f} m, wrong-intent {tol.wrong_intent_median_m:.3f} m)", flush=True)
     physics_s = time.perf_counter() - t_lib
-    print(f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise shape "
-          f"RMS, as tau = {cfg.tau} is of its actuation RMS (within-tuple median {tol.within_tuple_median_m:.3f} m, "
-          f"wrong-intent {tol.wrong_intent_median_m:.3f} m)", flush=True)
     key = jax.random.key(2026)
     todo = list(cfg.methods)
-    if cfg.physics_aware and "tuple_spline_rf" in todo:
+    if cfg.physics_aware and simulate and "tuple_spline_rf" in todo:
         todo.append(PHYSICS_AWARE)
     rf_trained = None
     for method in todo:
@@ -133,12 +156,12 @@ def run(cfg: AblationConfig) -> dict:
         train_s = time.perf_counter() - t0
         checkpoints.save(Path(cfg.runs) / method, trained.params,
                          {"method": trained.method, "variant": method, "seeds": list(cfg.seeds), "num_controls": 4,
-                          "config": dataclasses.asdict(train_cfg), "library_sha256": library.file_hash(),
-                          "step": cfg.steps})
+                          "config": dataclasses.asdict(train_cfg), "library_sha256": library.file_hash(lib.path),
+                          "num_tendons": num_tendons, "step": cfg.steps})
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
         u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
                                                       jax.random.fold_in(key, len(rows)), mesh)
-        phys = physics(u, ref_backbone, tol, cfg.engine)
+        phys = physics(u, ref_backbone, tol, cfg.engine) if simulate else NO_PHYSICS
         physics_s += phys["physics_s"]
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
@@ -155,15 +178,15 @@ def run(cfg: AblationConfig) -> dict:
     refs = metrics.reference_baselines(lib, seed=0, draws=max(len(cfg.seeds), 5))
     rng = np.random.default_rng(0)
     ref_phys = {name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, cfg.engine)
-                for name in ("oracle", "wrong_intent_any_intensity")}
+                if simulate else NO_PHYSICS for name in ("oracle", "wrong_intent_any_intensity") if name in refs}
     mean_u = metrics.tuple_mean(lib)
     r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
     refs["tuple_mean"] = {"success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
                           "rms": (float(r_mean.mean()), 0.0)}
-    ref_phys["tuple_mean"] = physics(mean_u[None, :, None], ref_backbone, tol, cfg.engine)
+    ref_phys["tuple_mean"] = physics(mean_u[None, :, None], ref_backbone, tol, cfg.engine) if simulate else NO_PHYSICS
     physics_s += sum(p["physics_s"] for p in ref_phys.values())
     return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
-            "shape_tolerance": dataclasses.asdict(tol), "physics_s": physics_s, "run_s": time.perf_counter() - t_run,
+            "shape_tolerance": dataclasses.asdict(tol) if tol else None, "physics_s": physics_s, "run_s": time.perf_counter() - t_run,
             "physics_engine": sim.resolve_engine(cfg.engine),
             "per_sample_rms": per_sample, "samples": samples, "date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
@@ -197,6 +220,8 @@ def markdown(res: dict) -> str:
                      f"{fmt(r['shape_success'])} | {fmt(r['shape_diversity_m'])} | {fmt4(r['feasible'])} | {paper} |")
     tau = float(cfg["tau"])
     for name, label in REFERENCES:
+        if name not in res["references"]:
+            continue  # a partial (imported) library has nothing to replay for it
         s = res["references"][name]["success"][tau]
         ph = res["reference_physics"][name]
         lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {ph['shape_rms_m'][0]:.3f} | "
@@ -206,18 +231,22 @@ def markdown(res: dict) -> str:
               "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
               "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
               "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory, "
-              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included). "
-              f"Physics columns: every generated sample simulated ({n_sim:,} trajectories, K_div × 64 per method and "
-              f"seed, engine {res['physics_engine']}, {res['physics_s']:.0f} s of the run's {res['run_s']:.0f} s); "
-              "Shape RMS: backbone RMS (over time and the 11 backbone points) to the held-out reference's simulated "
-              f"motion; Shape succ.: fraction of all samples within {tol['tau_m']:.3f} m, the "
-              f"{tol['percentile']:.1f}th percentile of the library's pairwise shape RMS, as τ = {tol['tau_rms']} is of "
-              f"its pairwise actuation RMS (library: within-tuple median {tol['within_tuple_median_m']:.3f} m, wrong "
-              f"intent {tol['wrong_intent_median_m']:.3f} m; {100 * tol['oracle_success']:.0f}% of same-tuple and "
-              f"{100 * tol['wrong_intent_success']:.0f}% of different-intent pairs inside); Shape div.: mean pairwise "
-              "shape RMS of a tuple's K_div samples; Feasible: stable, contact force and tip speed near the user within "
-              "bounds (MuJoCo), over all samples. The physics-aware row fine-tunes the RF on its own screened samples "
-              "(jgrounding/physics_training.py)."]
+              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included). "]
+    if tol is None:
+        lines[-1] += (f"Physics columns skipped (nan): the built-in simulator is the 4-tendon trunk, and this library "
+                      f"({res['config']['library']}) has another number of tendons.")
+        return "\n".join(lines) + "\n"
+    lines[-1] += (f"Physics columns: every generated sample simulated ({n_sim:,} trajectories, K_div × 64 per method and "
+                  f"seed, engine {res['physics_engine']}, {res['physics_s']:.0f} s of the run's {res['run_s']:.0f} s); "
+                  "Shape RMS: backbone RMS (over time and the 11 backbone points) to the held-out reference's simulated "
+                  f"motion; Shape succ.: fraction of all samples within {tol['tau_m']:.3f} m, the "
+                  f"{tol['percentile']:.1f}th percentile of the library's pairwise shape RMS, as τ = {tol['tau_rms']} is of "
+                  f"its pairwise actuation RMS (library: within-tuple median {tol['within_tuple_median_m']:.3f} m, wrong "
+                  f"intent {tol['wrong_intent_median_m']:.3f} m; {100 * tol['oracle_success']:.0f}% of same-tuple and "
+                  f"{100 * tol['wrong_intent_success']:.0f}% of different-intent pairs inside); Shape div.: mean pairwise "
+                  "shape RMS of a tuple's K_div samples; Feasible: stable, contact force and tip speed near the user within "
+                  "bounds (MuJoCo), over all samples. The physics-aware row fine-tunes the RF on its own screened samples "
+                  "(jgrounding/physics_training.py).")
     return "\n".join(lines) + "\n"
 
 
@@ -302,6 +331,8 @@ def main(argv=None) -> int:
     p.add_argument("--out")
     p.add_argument("--methods", help=f"comma-separated subset of {','.join(methods.METHODS)}")
     p.add_argument("--devices", type=int, help="devices of the mesh (0 = all; default 1 = no mesh); see docs/distributed.md")
+    p.add_argument("--library", help="library .npz to run Table II on (default: the shipped one), e.g. imported "
+                   "with python -m jgrounding.library import; results go to results/<its name> unless --out")
     args = p.parse_args(argv)
     cfg = AblationConfig(**QUICK) if args.quick else AblationConfig()
     if args.seeds:
@@ -318,13 +349,17 @@ def main(argv=None) -> int:
     if args.devices is not None:
         distributed.initialize()
         cfg = dataclasses.replace(cfg, devices=args.devices)
+    if args.library:  # its results go beside the shipped ones, not over them
+        out = args.out or str(Path("results") / Path(args.library).stem)
+        cfg = dataclasses.replace(cfg, library=args.library, out=out, runs=str(Path(out) / "runs"))
     t0 = time.perf_counter()
     res = run(cfg)
     write(res, cfg.out)
     from experiments import ablation_figures
 
-    for path in ablation_figures.write(res["samples"], load_library(), cfg.out):
-        print(f"wrote {path}")
+    if cfg.library is None:  # the figures show tuples of the shipped library
+        for path in ablation_figures.write(res["samples"], load_library(), cfg.out):
+            print(f"wrote {path}")
     print()
     print(markdown(res))
     for f in findings(res):

@@ -63,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=50, choices=(1, 2, 4, 8, 16, 25, 50, 100),
                    help="flow integration steps S (default 50)")
     p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
+    p.add_argument("--checkpoint", metavar="DIR", help="sample from this checkpoint (e.g. one trained on your own "
+                   "library with experiments.train --library; default: the shipped one)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--quiet", action="store_true", help="print only the output folder")
     mode.add_argument("--jsonl", action="store_true", help="print JSON lines (one per event)")
@@ -116,8 +118,8 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     u = sample(jax.random.key(args.seed), intent, intensity, num_samples=args.samples,
-               sampler=args.sampler, steps=args.steps)
-    u = np.asarray(u).reshape(-1, 150, 4)
+               sampler=args.sampler, steps=args.steps, checkpoint=args.checkpoint)
+    u = np.asarray(u).reshape((-1,) + np.shape(u)[-2:])
     say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]} "
         f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
 
@@ -135,7 +137,10 @@ def run(args: argparse.Namespace) -> int:
     buf = __import__("io").BytesIO()
     np.save(buf, u)
     files["samples"] = str(write_atomic(out / "samples.npy", buf.getvalue()))
-    if not args.no_render:
+    if not args.no_render and u.shape[-1] != 4:
+        say("render", f"render skipped: the built-in simulator is the 4-tendon trunk, this checkpoint has "
+            f"N_u = {u.shape[-1]} tendons")
+    elif not args.no_render:
         from jgrounding.sim import render
 
         t0 = time.perf_counter()

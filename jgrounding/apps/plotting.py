@@ -16,18 +16,20 @@ TENDON_LABELS = ("tendon 0 (toward user)", "tendon 1 (left)", "tendon 2 (away)",
 
 
 def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = True, lw: float = 1.6):
-    """Draw tendon commands ``(T, 4)`` or samples ``(K, T, 4)`` on ``ax``; reference dashed."""
+    """Draw tendon commands ``(T, N_u)`` or samples ``(K, T, N_u)`` on ``ax``; reference dashed."""
     u = np.asarray(u)
     samples = u[None] if u.ndim == 2 else u
     tau = np.linspace(0.0, 1.0, samples.shape[-2])
+    colors = TENDON_COLORS if samples.shape[-1] == 4 else [f"C{j}" for j in range(samples.shape[-1])]
+    labels = TENDON_LABELS if samples.shape[-1] == 4 else [f"tendon {j}" for j in range(samples.shape[-1])]
     for k, s in enumerate(samples):
         for j in range(s.shape[-1]):
-            ax.plot(tau, s[:, j], color=TENDON_COLORS[j], alpha=alpha, lw=lw,
-                    label=TENDON_LABELS[j] if (legend and k == 0) else None)
+            ax.plot(tau, s[:, j], color=colors[j], alpha=alpha, lw=lw,
+                    label=labels[j] if (legend and k == 0) else None)
     if reference is not None:
         ref = np.asarray(reference)
         for j in range(ref.shape[-1]):
-            ax.plot(tau, ref[:, j], color=TENDON_COLORS[j], ls="--", lw=1.2)
+            ax.plot(tau, ref[:, j], color=colors[j], ls="--", lw=1.2)
     ax.set_ylim(-0.03, 1.03)
     ax.set_xlabel("execution time τ")
     ax.set_ylabel("tendon pull u")

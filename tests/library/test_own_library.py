@@ -45,3 +45,25 @@ def test_train_cli_and_sample_three_tendons(three_tendon_library, tmp_path):
     with pytest.raises(ValueError, match="was trained on library .*my_library.npz with sha256 .* but that file now has"):
         sampling.load.cache_clear()  # a new process would load it afresh
         jg.sample(jax.random.key(0), "nodding", "moderate", checkpoint=str(out))
+
+
+@pytest.mark.slow
+def test_ablation_runs_on_a_three_tendon_library_without_physics(three_tendon_library, tmp_path, capsys):
+    from experiments import ablation
+
+    out = tmp_path / "abl"
+    assert ablation.main(["--quick", "--steps", "5", "--seeds", "0", "--methods", "tuple_spline_cnn",
+                          "--library", str(three_tendon_library), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "physics columns skipped: the built-in simulator is the 4-tendon trunk, this library has N_u = 3" in printed
+    table = (out / "ablation.md").read_text()
+    assert "Tuple + Spline + CNN" in table and "Oracle" in table
+    assert "Wrong intent" in table  # two intents in the library: the wrong-intent reference exists
+
+
+def test_references_a_partial_library_cannot_replay_are_left_out(three_tendon_library):
+    from jgrounding import metrics
+
+    refs = metrics.reference_baselines(jg.load_library(three_tendon_library), draws=2)
+    assert "oracle" in refs and "wrong_intent_any_intensity" in refs
+    assert "adjacent_intensity" not in refs  # nodding/moderate and greeting/emphatic: no neighbour level
