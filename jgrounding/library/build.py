@@ -244,11 +244,6 @@ def load_library(path: str | Path | None = None) -> Library:
     return Library(train=_split(arrays, ~held), heldout=_split(arrays, held), meta=card, path=str(path))
 
 
-if __name__ == "__main__":  # python -m jgrounding.library import DIR --out my_library.npz
-    from jgrounding import importer
-
-    raise SystemExit(importer.main())
-
 
 # Brackets of the success metric (SPEC §3): expected values over the library, exact (every training
 # record of a reference's pool replayed against each held-out target, no sampling noise).
@@ -318,3 +313,9 @@ def bracket_violations(b: dict, tau: float = 0.35) -> list[str]:
     if b["tuple_mean"][tau] > b["oracle"][tau] - TUPLE_MEAN_GAP:
         bad.append(f"tuple mean {b['tuple_mean'][tau]:.3f} is not {TUPLE_MEAN_GAP} below oracle {b['oracle'][tau]:.3f}")
     return bad
+
+
+if __name__ == "__main__":  # python -m jgrounding.library import DIR --out my_library.npz
+    from jgrounding import importer
+
+    raise SystemExit(importer.main())

@@ -44,6 +44,7 @@ TIME_COLUMNS = ("time", "time_s", "t", "timestamp")
 IGNORED_COLUMNS = ("step", "frame")
 MANIFEST_NAMES = ("manifest.json", "manifest.csv")
 TRUNK_TENDONS = 4  # the built-in simulator's trunk
+LIBRARY_VERSION = "imported-1"  # an imported library's content version (the built-in one has its own)
 
 
 class DemonstrationError(ValueError):
@@ -401,7 +402,8 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
     x = np.stack([resample(r.time, normalize(r.values, config.limits)) for r in recs])  # (B, T, N_u)
     controls, raw, u = _reduce(x, config.num_controls)
     intent = np.array([e.intent for e in kept], np.int32)
-    checks = screening.screen(raw, u, intent, simulate=config.simulate)
+    checks = screening.screen(raw, u, intent, simulate=config.simulate,
+                              intensity=np.array([e.intensity for e in kept], np.int32))
     names = [c for c in screening.CHECKS if c in checks]
     rejected = [{"file": e.file, "failed": [c for c in names if not checks[c][i]]}
                 for i, e in enumerate(kept) if not checks["accepted"][i]]
@@ -469,8 +471,12 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         c["heldout" if heldout[k] else "train"] += 1
     from jgrounding import library
 
+    arrays["library_version"] = np.asarray(LIBRARY_VERSION)
+    arrays["content_sha256"] = np.asarray(library.content_hash(arrays))
     card = {
         "format_version": library.FORMAT_VERSION,
+        "library_version": LIBRARY_VERSION,
+        "content_sha256": str(arrays["content_sha256"]),
         "source": "import",
         "config": {**dataclasses.asdict(config), "limits": [list(p) for p in config.limits]},
         "num_tendons": config.num_tendons,

@@ -55,7 +55,7 @@ def test_ablation_runs_on_a_three_tendon_library_without_physics(three_tendon_li
     assert ablation.main(["--quick", "--steps", "5", "--seeds", "0", "--methods", "tuple_spline_cnn",
                           "--library", str(three_tendon_library), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "physics columns skipped: the built-in simulator is the 4-tendon trunk, this library has N_u = 3" in printed
+    assert "physics-aware row skipped: the built-in simulator is the 4-tendon trunk, this library has N_u = 3" in printed
     table = (out / "ablation.md").read_text()
     assert "Tuple + Spline + CNN" in table and "Oracle" in table
     assert "Wrong intent" in table  # two intents in the library: the wrong-intent reference exists
