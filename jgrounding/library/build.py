@@ -313,9 +313,3 @@ def bracket_violations(b: dict, tau: float = 0.35) -> list[str]:
     if b["tuple_mean"][tau] > b["oracle"][tau] - TUPLE_MEAN_GAP:
         bad.append(f"tuple mean {b['tuple_mean'][tau]:.3f} is not {TUPLE_MEAN_GAP} below oracle {b['oracle'][tau]:.3f}")
     return bad
-
-
-if __name__ == "__main__":  # python -m jgrounding.library import DIR --out my_library.npz
-    from jgrounding import importer
-
-    raise SystemExit(importer.main())

@@ -4,7 +4,8 @@ import pytest
 
 import jax
 import jgrounding as jg
-from jgrounding import importer, library
+from jgrounding import library
+from jgrounding.library import importer
 from jgrounding.generators import methods
 from jgrounding.generators import sampling
 from jgrounding.training import TrainConfig
@@ -62,7 +63,7 @@ def test_ablation_runs_on_a_three_tendon_library_without_physics(three_tendon_li
 
 
 def test_references_a_partial_library_cannot_replay_are_left_out(three_tendon_library):
-    from jgrounding import metrics
+    from jgrounding.evaluation import metrics
 
     refs = metrics.reference_baselines(jg.load_library(three_tendon_library), draws=2)
     assert "oracle" in refs and "wrong_intent_any_intensity" in refs
