@@ -26,7 +26,7 @@ import jax
 import numpy as np
 
 from jgrounding import library, load_library, semantics, sim
-from jgrounding.evaluation import metrics
+from jgrounding.evaluation import latency, metrics
 from jgrounding.evaluation import physics as trunk_eval
 from jgrounding.generators import methods
 from jgrounding.training import checkpoints, distributed
@@ -82,7 +82,7 @@ def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     r = np.asarray(metrics.rms(u, ho.u[None, :, None]))  # (S, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)  # (S,)
     cov = coverage(u, lib)  # (S,)
-    lat_ms = methods.latency_ms(trained, cond_eval, ho.intensity, k_lat, steps=cfg.euler_steps)
+    lat_ms = latency.latency_ms(trained, ho.intent, ho.intensity, k_lat, cond=cond_eval, steps=cfg.euler_steps)
     return u, r, div, cov, lat_ms, u.shape[0] * u.shape[1] * u.shape[2] / batch_s
 
 
@@ -169,6 +169,7 @@ def run(cfg: AblationConfig) -> dict:
             "success": mean_std(succ), "success_all_samples": mean_std((r <= cfg.tau).mean(axis=(1, 2))),
             "rms": mean_std(r.mean(axis=(1, 2))), "diversity": mean_std(div), "coverage": mean_std(cov),
             "time_ms": lat_ms,
+            "time_measures": latency.measures(trained),
             "throughput_per_s": throughput, "train_s": train_s, **phys,
         }
         per_sample[method] = r
@@ -231,7 +232,9 @@ def markdown(res: dict) -> str:
               "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
               "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
               "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory, "
-              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included). "]
+              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included), "
+              "through jg.sample's public path; for the raw-text method through the compiled core (jg.sample "
+              "takes tuples). "]
     if tol is None:
         lines[-1] += (f"Physics columns skipped (nan): the built-in simulator is the 4-tendon trunk, and this library "
                       f"({res['config']['library']}) has another number of tendons.")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-COMMANDS = ("trunk", "sample", "semantics", "shard")
+COMMANDS = ("trunk", "sample", "semantics", "shard", "fuzz")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -24,7 +24,7 @@ from jgrounding import load_library, semantics
 
 from jgrounding.generators import methods
 
-from jgrounding.evaluation import metrics
+from jgrounding.evaluation import latency, metrics
 
 from jgrounding.actuation import splines
 from jgrounding.io import write_atomic
@@ -83,7 +83,8 @@ def _eval(trained, lib, cond, key, k_div, steps, sampler="euler"):
     u = methods.generate(trained, cond, lib.heldout.intensity, key, num_samples=k_div, steps=steps, sampler=sampler)
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
-    ms = methods.latency_ms(trained, cond, lib.heldout.intensity, key, steps=steps, sampler=sampler)
+    ms = latency.latency_ms(trained, lib.heldout.intent, lib.heldout.intensity, key, cond=cond, steps=steps,
+                            sampler=sampler)
     return mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), mean_std(div), ms
 
 

@@ -21,7 +21,7 @@ from jgrounding import load_library, semantics
 
 from jgrounding.generators import methods
 
-from jgrounding.evaluation import metrics
+from jgrounding.evaluation import latency, metrics
 from jgrounding.apps.plotting import plt, save
 from jgrounding.training import TrainConfig
 
@@ -61,7 +61,8 @@ def evaluate(trained, lib, cond, key, k_div, sampler, steps, w) -> dict:
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))  # (seeds, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
     cov = np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)
-    ms = methods.latency_ms(trained, cond, lib.heldout.intensity, k_lat, steps=steps, sampler=sampler, guidance=w)
+    ms = latency.latency_ms(trained, lib.heldout.intent, lib.heldout.intensity, k_lat, cond=cond, steps=steps,
+                            sampler=sampler, guidance=w)
     nfe = steps * EVALS_PER_STEP[sampler] * (2 if w else 1)
     return {"success": mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), "diversity": mean_std(div),
             "coverage": mean_std(cov), "time_ms": ms, "nfe": nfe, "sampler": sampler, "steps": steps,

@@ -10,7 +10,6 @@ predict the 150 x 4 trajectory directly. Every output passes through ``safety.ma
 from __future__ import annotations
 
 import dataclasses
-import time
 from typing import Any
 
 import jax
@@ -140,6 +139,14 @@ def init(method: str, seeds, num_controls: int = 4, num_tendons: int = 4):
     return graphdef, params
 
 
+def abstract(method: str, seeds, num_controls: int = 4, num_tendons: int = 4):
+    """(graphdef, params as ``jax.ShapeDtypeStruct`` stacked over seeds): :func:`init`'s structure and
+    shapes, traced but never computed (a checkpoint restore needs nothing more; no start-up compiles)."""
+    model = nnx.eval_shape(lambda: build_model(method, num_controls, jax.random.key(0), num_tendons))
+    graphdef, state = nnx.split(model)
+    return graphdef, jax.tree.map(lambda x: jax.ShapeDtypeStruct((len(seeds), *x.shape), x.dtype), state)
+
+
 def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainConfig = training.TrainConfig(),
           *, intent_emb=None, text_emb=None, num_controls: int = 4, progress: bool = True,
           initial_states=None, on_chunk=None, mesh=None) -> Trained:
@@ -239,7 +246,7 @@ def restore(path, method: str | None = None) -> Trained:
         raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
     if isinstance(num_tendons, bool) or not isinstance(num_tendons, int) or not 1 <= num_tendons <= 64:
         raise ValueError(f"checkpoint {path} has num_tendons {num_tendons!r}, expected an integer in 1..64")
-    graphdef, params = init(name, tuple(seeds), num_controls, num_tendons)
+    graphdef, params = abstract(name, tuple(seeds), num_controls, num_tendons)
     params, _ = checkpoints.restore(path, params)
     return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons)
 
@@ -350,36 +357,3 @@ def generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_t
             _GEN_CACHE[key] = jax.jit(fn, in_shardings=(rep, split, split, rep),
                                       out_shardings=distributed.sharding(mesh, None, distributed.AXIS))
     return _GEN_CACHE[key]
-
-
-def latency_fn(trained: Trained, seed_index: int = 0, *, sampler: str = "euler", steps: int = 50,
-               guidance: float = 0.0):
-    """Compiled single-trajectory grounding ``(cond (384,), intensity, key) -> u (150, 4)`` for timing."""
-    params = jax.tree.map(lambda x: x[seed_index], trained.params)
-
-    @jax.jit
-    def fn(cond, intensity, key):
-        return sample_one(trained.method, trained.graphdef, params, cond[None], intensity[None], key,
-                          sampler=sampler, steps=steps, num_controls=trained.num_controls,
-                          num_tendons=trained.num_tendons, guidance=guidance)[0]
-
-    return fn
-
-
-def latency_ms(trained: Trained, cond, intensity, key, *, sampler: str = "euler", steps: int = 50,
-               reps: int = 200, guidance: float = 0.0) -> float:
-    """Median warm wall time (ms) of one single-trajectory grounding, tuple -> u (150, 4), spline
-    reconstruction and safety gate included (the paper's Time), cycling through ``cond (N, 384)``,
-    ``intensity (N,)``. Inputs and keys are placed on the device before the clock starts, so only the
-    compiled call is timed (Table II's protocol: one trajectory at a time)."""
-    fn = latency_fn(trained, 0, sampler=sampler, steps=steps, guidance=guidance)
-    n = len(cond)
-    keys = jax.random.split(key, max(reps, n))
-    calls = [(jnp.asarray(cond[i % n]), jnp.asarray(intensity[i % n], jnp.int32), keys[i]) for i in range(len(keys))]
-    jax.block_until_ready(fn(*calls[0]))
-    times = []
-    for args in calls:
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))

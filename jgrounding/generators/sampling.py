@@ -46,7 +46,8 @@ class Model:
     (sampler, steps, batch bucket).
     """
 
-    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None):
+    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None,
+                 guidance: float = 0.0):
         if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
             trained = dataclasses.replace(trained, params=jax.tree.map(lambda x: x[:1], trained.params),
                                           seeds=trained.seeds[:1])
@@ -55,6 +56,7 @@ class Model:
         self.intent_emb = np.asarray(intent_emb, np.float32)
         self.name = name
         self.generator = methods.spec(trained.method).generator
+        self.guidance = float(guidance)  # classifier-free guidance w of a model trained with condition dropout
         self._params = jax.device_put(jax.tree.map(lambda x: x[0], trained.params))
         self._emb = jax.device_put(self.intent_emb)
         self._programs: dict = {}
@@ -71,7 +73,7 @@ class Model:
             def row(intent, intensity, key):  # one trajectory; params and embeddings are constants
                 return methods.actuation(tr.method, tr.graphdef, params, emb[intent][None], intensity[None], key,
                                          sampler=sampler, steps=steps, num_controls=tr.num_controls,
-                                         num_tendons=tr.num_tendons)[0]
+                                         num_tendons=tr.num_tendons, guidance=self.guidance)[0]
 
             def run(intent, intensity, first, key):
                 TRACES[(self.name, *cache_key)] += 1  # Python side effect: counts traces, not calls
@@ -180,12 +182,15 @@ def _indices(ms: list | None, zs: list | None, intent, intensity) -> tuple[np.nd
 def check_library(path: Path) -> None:
     """Refuse a checkpoint whose recorded library file (``library_path`` in its meta.json, written by
     ``experiments.train``) exists but no longer has the sha256 the checkpoint was trained on."""
-    from jgrounding import library
     from jgrounding.training import checkpoints
 
     meta = checkpoints.read_meta(path) if (Path(path) / "meta.json").exists() else {}
     lib_path, digest = meta.get("library_path"), meta.get("library_sha256")
-    if lib_path and digest and Path(lib_path).is_file() and library.file_hash(lib_path) != digest:
+    if not (lib_path and digest and Path(lib_path).is_file()):
+        return
+    from jgrounding import library  # only here: it imports the physics (MuJoCo) for screening
+
+    if library.file_hash(lib_path) != digest:
         raise ValueError(f"checkpoint {path} was trained on library {lib_path} with sha256 {digest[:12]}..., but that "
                          f"file now has sha256 {library.file_hash(lib_path)[:12]}...; retrain on the current library "
                          "(python -m experiments.train --library ...) or restore the library it was trained on")

@@ -138,12 +138,13 @@ def restore(directory: str | Path, target, expect: dict | None = None):
                          f"{directory / 'meta.json'}; refusing to load it")
     if len(flat) != len(flat_t):
         raise ValueError(f"checkpoint {directory} holds {len(flat)} arrays, expected {len(flat_t)}")
+    # a target leaf is an array or a jax.ShapeDtypeStruct (methods.abstract)
+    flat_t = [b if hasattr(b, "shape") and hasattr(b, "dtype") else np.asarray(b) for b in flat_t]
     for a, b in zip(flat, flat_t):
-        if np.shape(a) != np.shape(b):
+        if np.shape(a) != tuple(b.shape):
             raise ValueError(f"checkpoint {directory} has an array of shape {np.shape(a)} where "
-                             f"{np.shape(b)} is expected")
-    tree = jax.tree_util.tree_unflatten(treedef, [np.asarray(a, dtype=np.asarray(b).dtype)
-                                                  for a, b in zip(flat, flat_t)])
+                             f"{tuple(b.shape)} is expected")
+    tree = jax.tree_util.tree_unflatten(treedef, [np.asarray(a, dtype=b.dtype) for a, b in zip(flat, flat_t)])
     if not all(np.all(np.isfinite(np.asarray(x))) for x in jax.tree_util.tree_leaves(tree)
                if np.issubdtype(np.asarray(x).dtype, np.floating)):
         raise ValueError(f"checkpoint {directory} contains NaN or Inf parameters; refusing to load it")

@@ -68,3 +68,11 @@ def test_repeated_public_calls_trace_once_per_sampler_steps_bucket():
     assert sampling.TRACES[(name, *config, 1)] == 1
     assert sampling.TRACES[(name, *config, 8)] == 1  # 5, 7 and 2 x 3 share the bucket of 8
     assert sampling.TRACES[(name, *config, 2)] == 0
+
+
+@pytest.mark.slow
+def test_fuzzed_public_calls_are_all_safe():
+    from experiments import bench_fuzz
+
+    counts = bench_fuzz.fuzz(seed=1, trajectories=20_000)  # `python -m experiments.bench fuzz`: >= 1,000,000
+    assert counts["bad"] == 0 and counts["trajectories"] >= 20_000 and len(counts["configs"]) >= 4
