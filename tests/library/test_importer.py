@@ -211,3 +211,18 @@ def test_command_stream_round_trip_export_import_reconstruct(tmp_path, fmt):
         np.testing.assert_allclose(arrays["controls"][i], c, atol=1e-5)
         np.testing.assert_allclose(arrays["u"][i], np.asarray(splines.reconstruct(c)), atol=1e-5)
     assert card["rejected"] == []
+
+
+def test_module_entry_point_imports_a_folder(tmp_path):
+    """``python -m jgrounding.library import DIR --out ...`` as a user types it."""
+    import subprocess
+    import sys
+
+    folder = write_folder(tmp_path / "rec", num_tendons=6, manifest="json")
+    out = tmp_path / "six.npz"
+    res = subprocess.run([sys.executable, "-m", "jgrounding.library", "import", str(folder), "--out", str(out),
+                          "--limits", "2:12", "--tendons", "6", "--controls", "5"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert "N_u = 6" in res.stdout and "the built-in simulator is the 4-tendon trunk, these data have N_u = 6" in res.stdout
+    lib = load_library(out)
+    assert lib.train.u.shape == (4, 150, 6) and lib.train.controls.shape == (4, 6, 5)
