@@ -7,6 +7,10 @@
 compile time cold (empty persistent cache) and again in a fresh process with the cache filled, then
 physics steps/s for each batch size on both engines, as ratios, and the tip agreement of the two.
 MJX runs every batch as padded chunks of ``--chunk`` so one compiled program serves all sizes.
+Then, for the ablation's batch (K_div x 64 = 1,920 trajectories per method and seed), simulated
+trajectories per second on each engine through :func:`jgrounding.physics.simulate_samples` (what the
+ablation calls), which engine ``"auto"`` picks here, and the share of ``make ablation`` that physics
+takes: measured, from the last run's results/ablation.json, and predicted from this rate.
 Writes results/bench_trunk.md.
 """
 from __future__ import annotations
@@ -22,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import load_library, sim
-
+from jgrounding.evaluation import physics
+from jgrounding.io import write_atomic
 from jgrounding.sim import mjx as trunk_mjx
 from jgrounding.sim import model as tm
-from jgrounding.io import write_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 _CACHED = ("import sys, time, numpy as np; from jgrounding import trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
@@ -141,8 +145,51 @@ def main(argv=None) -> int:
     say(f"{os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
         f"core; MJX = jax on CPU, float32, every batch run as padded chunks of {args.chunk} (so B = 64 does a chunk's "
         "work: one compiled program serves every B). Commands: library trajectories, repeated to fill B.")
+    ablation_throughput(pool, say)
     write_atomic(ROOT / "results" / "bench_trunk.md", "\n".join(lines) + "\n")
     return 0
+
+
+def ablation_rollouts(k_div: int = 30, seeds: int = 5, deterministic: int = 3, generative: int = 3,
+                      candidates: int = 2 * 64 * 16, library: int = 256, references: int = 3 * 64) -> int:
+    """Distinct trajectories ``make ablation`` simulates with its defaults: every sample of the generative
+    rows (DDPM, RF, physics-aware RF), one per tuple for the deterministic CNNs (their K_div copies are
+    identical and simulated once), the physics-aware fine-tuning's screened candidates, the library once
+    (held-out references and the shape tolerance) and the reference rows."""
+    return seeds * (64 * (deterministic + generative * k_div) + candidates) + library + references
+
+
+def ablation_throughput(pool, say, k_div: int = 30) -> None:
+    """Simulated trajectories/s for the ablation's batch on each engine, and physics' share of the ablation."""
+    import json
+
+    batch = 64 * k_div
+    u = pool[np.arange(batch) % len(pool)].reshape(64, k_div, 150, 4).copy()
+    u += np.random.default_rng(0).uniform(0, 1e-4, u.shape) * (u < 1 - 1e-4)  # distinct: no rollout is deduplicated
+    ref = sim.rollout(pool[:64]).backbone
+    say("")
+    say(f"Physics columns of the ablation: one batch = K_div x 64 = {batch:,} trajectories per method and seed "
+        f"(engine \"auto\" picks {sim.resolve_engine('auto')} on this machine).")
+    say("")
+    say("| engine | trajectories/s | s per batch of 1,920 |")
+    say("|---|---|---|")
+    rate = {}
+    for engine in ("native", "mjx"):
+        physics.simulate_samples(u[:, :16], ref, 0.1, engine=engine)  # warm: one full chunk (MJX compiles it)
+        res = physics.simulate_samples(u, ref, 0.1, engine=engine)
+        rate[engine] = res["simulated"] / res["seconds"]
+        say(f"| {engine} | {rate[engine]:,.0f} | {res['seconds']:.1f} |")
+    auto = rate[sim.resolve_engine("auto")]
+    n = ablation_rollouts(k_div)
+    say("")
+    say(f"make ablation (defaults) simulates {n:,} distinct trajectories: {n / auto:.0f} s at the auto engine's rate.")
+    path = ROOT / "results" / "ablation.json"
+    last = json.loads(path.read_text()) if path.exists() else {}
+    if "physics_s" in last and "run_s" in last:
+        say(f"Last ablation run (results/ablation.json, {last.get('date', '?')}): physics {last['physics_s']:.0f} s of "
+            f"{last['run_s']:.0f} s ({100 * last['physics_s'] / last['run_s']:.0f}%), engine {last.get('physics_engine')}.")
+    else:
+        say("results/ablation.json predates the physics timing; run `make ablation` to measure physics' share.")
 
 
 if __name__ == "__main__":

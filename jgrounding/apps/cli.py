@@ -8,8 +8,11 @@ Grounds the text to an (intent, intensity) tuple, samples K trajectories, and wr
 - ``commands.csv`` / ``commands.json``: the command stream of sample 0 at the control rate, with units
   and bounds in a header, ready for a motor controller; ``samples.npy``: all K trajectories.
 
-``--intent/--intensity`` skip the text and sample a tuple directly. ``--jsonl`` prints one JSON object
-per event for scripts; ``--quiet`` prints only the output folder.
+``--intent/--intensity`` skip the text and sample a tuple directly. ``--current`` is the command the robot
+holds now (default ``rest``): the trajectories blend in from it within the slew bound. ``--screen``
+simulates the candidates on the trunk and keeps only feasible ones (stable, contact force and tip speed
+near the user within bounds), reporting how many were rejected. ``--jsonl`` prints one JSON object per
+event for scripts; ``--quiet`` prints only the output folder.
 """
 
 from __future__ import annotations
@@ -46,6 +49,20 @@ def _seed(text: str) -> int:
     return s
 
 
+def _current(text: str):
+    """``rest`` or one comma-separated pull in [0, 1] per tendon (the robot's current command)."""
+    if text.strip().lower() == "rest":
+        return "rest"
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(0.0 <= v <= 1.0 for v in values):
+        raise argparse.ArgumentTypeError(f"--current must be 'rest' or comma-separated pulls in [0, 1], one per "
+                                         f"tendon (4 for the built-in trunk, e.g. 0.2,0,0.1,0), got {text!r}")
+    return values
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m jgrounding",
@@ -62,6 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sampler", choices=("euler", "midpoint", "rk4"), default="euler")
     p.add_argument("--steps", type=int, default=50, choices=(1, 2, 4, 8, 16, 25, 50, 100),
                    help="flow integration steps S (default 50)")
+    p.add_argument("--current", type=_current, default="rest", metavar="rest|A,B,C,D",
+                   help="the robot's current command, blended from within the slew bound (default rest)")
+    p.add_argument("--screen", action="store_true",
+                   help="simulate candidates on the trunk and keep only feasible ones (reports the rejected)")
     p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
     p.add_argument("--checkpoint", metavar="DIR", help="sample from this checkpoint (e.g. one trained on your own "
                    "library with experiments.train --library; default: the shipped one)")
@@ -87,12 +108,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from jgrounding import vocabulary
-
-    from jgrounding.apps import export
+    from jgrounding.apps import export, plotting
+    from jgrounding.generators import sampling
     from jgrounding.io import write_atomic
-
-    from jgrounding.apps import plotting
-    from jgrounding.generators.sampling import sample
 
     say = _Printer(args.quiet, args.jsonl)
     out = Path(args.out)
@@ -117,10 +135,20 @@ def run(args: argparse.Namespace) -> int:
                 f"({getattr(g, 'reason', '')})", reason=str(getattr(g, "reason", "")))
 
     t0 = time.perf_counter()
-    u = sample(jax.random.key(args.seed), intent, intensity, num_samples=args.samples,
-               sampler=args.sampler, steps=args.steps, checkpoint=args.checkpoint)
+    kwargs = dict(num_samples=args.samples, sampler=args.sampler, steps=args.steps, checkpoint=args.checkpoint,
+                  current=args.current)
+    if args.screen:
+        res = sampling.screened(jax.random.key(args.seed), intent, intensity, **kwargs)
+        u = res.u
+        say("screen", f"screened on the trunk ({res.engine}): {res.candidates} candidates simulated, "
+            f"{res.rejected} rejected as infeasible, {args.samples} kept "
+            f"[{1e3 * res.seconds:.0f} ms of simulation]", candidates=res.candidates, rejected=res.rejected,
+            engine=res.engine)
+    else:
+        u = sampling.sample(jax.random.key(args.seed), intent, intensity, **kwargs)
     u = np.asarray(u).reshape((-1,) + np.shape(u)[-2:])
-    say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]} "
+    say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]}, blended in from "
+        f"{'rest' if args.current == 'rest' else args.current} "
         f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
 
     from jgrounding.sim import CONTROL_DT

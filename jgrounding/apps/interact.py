@@ -4,6 +4,11 @@ Type a response plan ("User seems sad; respond calmly") and see the grounded tup
 with ``:render``, the simulated motion. ``obs: <scene> | <what the user said>`` asks the MLLM for a
 response first (Eq. 2, needs JGROUNDING_MLLM_URL), with the short history of past tuples. Commands:
 ``:help``, ``:history``, ``:render``, ``:quit``.
+
+Each turn's trajectory continues from where the last one left the robot (the first from rest): the gate
+blends it in within the slew bound, so the command stream never jumps between responses. The stream
+sent so far (every turn's sample 0, in order) is saved as ``stream.npy`` in the output folder.
+``--screen`` keeps only candidates that the simulated trunk finds feasible.
 """
 
 from __future__ import annotations
@@ -21,19 +26,23 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     p.add_argument("--out", default="interact_out")
     p.add_argument("--backend", choices=("embedded", "mllm"), default="embedded")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--screen", action="store_true", help="keep only samples feasible on the simulated trunk")
     args = p.parse_args(argv)
 
     import jax
+    import numpy as np
 
     from jgrounding.apps import plotting
-
+    from jgrounding.generators import sampling
+    from jgrounding.io import write_atomic
     from jgrounding.sim import render
-    from jgrounding.generators.sampling import sample
     from jgrounding.semantics import ground
 
     out = Path(args.out)
     history: list[tuple[str, str]] = []
     last = None
+    current = "rest"  # the robot's command when the session starts
+    stream = []
     turn = 0
     print("jgrounding interactive: type a response, 'obs: scene | utterance', or :help", file=stdout)
     for line in stdin:
@@ -74,8 +83,19 @@ def main(argv=None, stdin=None, stdout=None) -> int:
         history.append((g.intent, g.intensity))
         flag = "" if g.confident else f"  (low confidence: {g.reason})"
         print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
-        u = sample(jax.random.fold_in(jax.random.key(args.seed), turn), g.intent, g.intensity, num_samples=8)
+        key = jax.random.fold_in(jax.random.key(args.seed), turn)
+        if args.screen:
+            res = sampling.screen(key, g.intent, g.intensity, num_samples=8, current=current)
+            u = res.u
+            print(f"   screened: {res.rejected} of {res.candidates} candidates rejected as infeasible", file=stdout)
+        else:
+            u = sampling.sample(key, g.intent, g.intensity, num_samples=8, current=current)
         last = u[0]
+        current = last[-1]  # the next response starts from where this one leaves the robot
+        stream.append(last)
+        buf = __import__("io").BytesIO()
+        np.save(buf, np.concatenate(stream))
+        write_atomic(out / "stream.npy", buf.getvalue())
         print(f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=f'{g.intent} / {g.intensity}')}",
               file=stdout)
         stdout.flush()

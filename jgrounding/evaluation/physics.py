@@ -24,7 +24,7 @@ import numpy as np
 
 from jgrounding import sim
 
-CHUNK = 1024  # trajectories per rollout call: ~40 MB of backbone in float64
+CHUNK = sim.MJX_CHUNK  # trajectories per rollout call: ~40 MB of backbone in float64; one MJX chunk
 
 
 def shape_rms(a: np.ndarray, b: np.ndarray) -> np.ndarray:

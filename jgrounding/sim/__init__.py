@@ -8,7 +8,7 @@ Two engines behind one function, :func:`rollout`, and one choice between them, `
   steps/s on this 2-core CPU (``python -m experiments.bench trunk`` prints both, for the ablation's
   batch), and it needs no compilation.
 - ``"mjx"``: ``jit(vmap(lax.scan))`` over control steps with the physics substeps inside, compiled
-  once per chunk size (padded chunks of :data:`MJX_CHUNK`). It is the engine that scales on
+  once per chunk size (padded power-of-two chunks, at most :data:`MJX_CHUNK`). It is the engine that scales on
   accelerators; on CPU it serves as a check (the two agree to float precision).
 - ``"auto"``: ``"mjx"`` when JAX's default backend is an accelerator (GPU/TPU), else ``"native"``
   (:func:`resolve_engine`). Every caller in the project (ablation, screened sampling, physics-aware
@@ -33,7 +33,7 @@ from jgrounding.sim.measures import (  # noqa: F401  (re-exported: the simulator
 from jgrounding.sim.native import load_model, rollout_native, validate_actuation  # noqa: F401
 
 ENGINES = ("auto", "native", "mjx")
-MJX_CHUNK = 2048  # MJX runs padded chunks of this many trajectories: one compiled program per process
+MJX_CHUNK = 1024  # the largest padded chunk MJX runs (evaluation.physics rolls out batches of this size)
 
 
 def resolve_engine(engine: str = "auto") -> str:
@@ -52,8 +52,8 @@ def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
     """Simulate actuation ``(T, 4)`` or ``(B, T, 4)`` in [0, 1]; returns a batch-first :class:`Rollout`.
 
     ``engine``: ``"auto"`` (default: native on CPU, MJX on an accelerator), ``"native"`` (MuJoCo,
-    multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded chunks of
-    :data:`MJX_CHUNK` or the batch if smaller). ``contact=False`` removes the user's contact geometry
+    multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded power-of-two
+    chunks of at most :data:`MJX_CHUNK`). ``contact=False`` removes the user's contact geometry
     (distances are still measured).
     """
     engine = resolve_engine(engine)
@@ -62,4 +62,6 @@ def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
         return rollout_native(u, contact)
     from jgrounding.sim import mjx
 
-    return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, u.shape[0]))
+    # Padded chunks of the next power of two (at most MJX_CHUNK): a handful of compiled programs serve
+    # every batch size.
+    return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, 1 << (u.shape[0] - 1).bit_length()))

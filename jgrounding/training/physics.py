@@ -4,7 +4,7 @@ The simulator shapes the generator. Starting from a trained Tuple + Spline + RF 
 round
 
 1. draws ``candidates`` samples for each of the 64 (intent, intensity) tuples from the current model;
-2. rolls them all out in one batch (:func:`jgrounding.trunk_eval.margins`, ``engine="auto"``) and keeps the
+2. rolls them all out in one batch (:func:`jgrounding.evaluation.physics.margins`, ``engine="auto"``) and keeps the
    ones whose feasibility margin (:func:`jgrounding.sim.feasibility_margin`) is at least
    ``margin``: a buffer inside the bound, so the model learns to stay away from it, not to graze it;
 3. fine-tunes the model with the rectified-flow loss (Eq. rf_loss) on the kept samples' controls
@@ -26,7 +26,7 @@ import numpy as np
 from flax import nnx
 
 from jgrounding import training
-from jgrounding.evaluation import physics as trunk_eval
+from jgrounding.evaluation import physics as phys_eval
 
 from jgrounding.generators import flows
 
@@ -46,7 +46,7 @@ class PhysicsConfig:
     margin: float = 0.2  # keep candidates with feasibility margin >= this (0 = just feasible)
     learning_rate: float = 3e-4  # below Table I's 1e-3: fine-tuning, not training (1e-3 drifted: RMS up)
     euler_steps: int = 50  # S of the sampler that draws the candidates
-    engine: str = "auto"  # trunk.rollout engine
+    engine: str = "auto"  # jgrounding.sim.rollout engine
 
 
 def _tuples(intent_emb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -64,54 +64,78 @@ def _loss(graphdef, data):
     return loss
 
 
+def _refill(keep: np.ndarray, controls: np.ndarray, lib_controls: dict, rng: np.random.Generator) -> np.ndarray:
+    """Fixed-size training targets from the kept candidates: ``keep (64, C)``, ``controls (64, C, D)`` ->
+    ``(64, C, D)`` where each rejected slot holds a kept candidate of the same tuple (drawn with ``rng``),
+    or one of the tuple's library realizations if none was kept. Tuples stay balanced and every seed's
+    data has the same shape, so all seeds fine-tune in one vmapped program."""
+    out = controls.copy()
+    for j in range(keep.shape[0]):
+        bad = np.flatnonzero(~keep[j])
+        if len(bad) == 0:
+            continue
+        kept = np.flatnonzero(keep[j])
+        out[j, bad] = controls[j, rng.choice(kept, len(bad))] if len(kept) else \
+            lib_controls[j][rng.integers(0, len(lib_controls[j]), len(bad))]
+    return out
+
+
+def _make_finetune(graphdef, cond, intensity, config: training.TrainConfig):
+    """``jit(vmap over seeds)``: ``(states, targets (S, N, D)) -> (states, losses (S, steps))``."""
+    n = cond.shape[0]
+
+    def run(state, target):
+        data = {"cond": cond, "intensity": intensity, "target": target}
+        step = training.make_step(_loss(graphdef, data), n, config)
+        return jax.lax.scan(step, state, None, length=config.steps)
+
+    return jax.jit(jax.vmap(run))
+
+
 def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: PhysicsConfig = PhysicsConfig(),
-             config: training.TrainConfig = training.TrainConfig(), progress: bool = False):
-    """Physics-aware fine-tuning of every seed of a trained ``tuple_spline_rf``.
+             config: training.TrainConfig = training.TrainConfig()):
+    """Physics-aware fine-tuning of every seed of a trained ``tuple_spline_rf`` (all seeds at once).
 
     Args:
       teacher: the trained RF (leading seed axis on its parameters).
       library: its ``train`` split is mixed into every round's data.
       key: randomness of candidate generation and fine-tuning.
       intent_emb: ``(16, 384)`` intent embeddings (the tuple condition).
+      config: the optimizer (batch size, weight decay); steps and learning rate come from ``physics``.
     Returns:
       ``(trained, report)``: a :class:`jgrounding.generators.methods.Trained` of the same method and seeds, and per
-      round the candidates simulated, the fraction kept and the fraction feasible.
+      round the candidates simulated, the fraction kept, the fraction feasible and the rollout seconds.
     """
     if teacher.method != METHOD:
         raise ValueError(f"physics-aware fine-tuning applies to {METHOD}; got {teacher.method}")
     cond, inten = _tuples(intent_emb)
-    lib_cond = np.asarray(intent_emb)[library.train.intent]
-    lib_target = np.asarray(library.train.controls).reshape(len(library.train), -1)
-    config = dataclasses.replace(config, steps=physics.steps, chunk=min(config.chunk, physics.steps),
-                                 learning_rate=physics.learning_rate)
+    n_tuples, c = len(cond), physics.candidates
+    tr = library.train
+    lib_target = np.asarray(tr.controls, np.float32).reshape(len(tr), -1)
+    tuple_of = tr.intent * NUM_INTENSITIES + tr.intensity
+    lib_by_tuple = {j: lib_target[tuple_of == j] for j in range(n_tuples)}
+    all_cond = jnp.asarray(np.concatenate([np.repeat(cond, c, 0), np.asarray(intent_emb)[tr.intent]]), jnp.float32)
+    all_inten = jnp.asarray(np.concatenate([np.repeat(inten, c), tr.intensity]), jnp.int32)
+    config = dataclasses.replace(config, steps=physics.steps, learning_rate=physics.learning_rate)
+    run = _make_finetune(teacher.graphdef, all_cond, all_inten, config)
+    rng = np.random.default_rng(int(jax.random.randint(key, (), 0, 2**31 - 1)))
     params, report = teacher.params, []
     for rnd in range(physics.rounds):
         k_gen, k_train = jax.random.split(jax.random.fold_in(key, rnd))
         current = dataclasses.replace(teacher, params=params)
-        u = methods.generate(current, cond, inten, k_gen, num_samples=physics.candidates,
-                             steps=physics.euler_steps)  # (S, 64, C, 150, 4)
+        u = methods.generate(current, cond, inten, k_gen, num_samples=c, steps=physics.euler_steps)  # (S, 64, C, T, 4)
         flat = u.reshape(-1, *u.shape[-2:])
         t0 = time.perf_counter()
-        margin = trunk_eval.margins(flat, engine=physics.engine).reshape(u.shape[:3])
+        margin = phys_eval.margins(flat, engine=physics.engine).reshape(u.shape[:3])
         seconds = time.perf_counter() - t0
         keep = margin >= physics.margin
         report.append({"round": rnd, "simulated": int(flat.shape[0]), "kept": float(keep.mean()),
                        "feasible": float((margin >= 0).mean()), "seconds": seconds})
-        controls = np.asarray(splines.fit(flat, num_controls=teacher.num_controls)).reshape(
-            *u.shape[:3], -1)  # (S, 64, C, 4P)
-        new = []
-        for i in range(len(teacher.seeds)):
-            kept = keep[i]
-            c_all = np.concatenate([np.repeat(cond, physics.candidates, 0)[kept.reshape(-1)], lib_cond])
-            z_all = np.concatenate([np.repeat(inten, physics.candidates)[kept.reshape(-1)],
-                                    library.train.intensity])
-            y_all = np.concatenate([controls[i][kept], lib_target])
-            data = {"cond": jnp.asarray(c_all, jnp.float32), "intensity": jnp.asarray(z_all, jnp.int32),
-                    "target": 2.0 * jnp.asarray(y_all, jnp.float32) - 1.0}  # controls in [-1, 1], as methods
-            step = training.make_step(_loss(teacher.graphdef, data), len(y_all), config)
-            p_i = jax.tree.map(lambda x: x[i], params)
-            state = jax.tree.map(lambda x: x[None], training.init_state(p_i, jax.random.fold_in(k_train, i), config))
-            state, _ = training.train(state, step, config, desc=f"physics seed {teacher.seeds[i]}", progress=progress)
-            new.append(state.params)
-        params = jax.tree.map(lambda *x: jnp.concatenate(x), *new)
+        controls = np.asarray(splines.fit(flat, num_controls=teacher.num_controls)).reshape(*u.shape[:3], -1)
+        targets = np.stack([np.concatenate([_refill(keep[i], controls[i], lib_by_tuple, rng).reshape(n_tuples * c, -1),
+                                            lib_target]) for i in range(len(teacher.seeds))])
+        keys = jax.random.split(k_train, len(teacher.seeds))
+        states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
+        states, _ = run(states, 2.0 * jnp.asarray(targets) - 1.0)  # controls in [-1, 1], as the methods train
+        params = states.params
     return dataclasses.replace(teacher, params=params, losses=None), report
