@@ -146,8 +146,40 @@ def main(argv=None) -> int:
         f"core; MJX = jax on CPU, float32, every batch run as padded chunks of {args.chunk} (so B = 64 does a chunk's "
         "work: one compiled program serves every B). Commands: library trajectories, repeated to fill B.")
     ablation_throughput(pool, say)
+    screening_latency(say)
     write_atomic(ROOT / "results" / "bench_trunk.md", "\n".join(lines) + "\n")
     return 0
+
+
+def screening_latency(say, reps: int = 20) -> None:
+    """Latency of screened sampling (``jg.sample(..., screen=True)``) beside plain ``jg.sample``, warm, median."""
+    import jax
+
+    from jgrounding import sampling
+
+    say("")
+    say("| public call (warm, median of %d) | plain ms | screened ms | screened / plain | candidates simulated per "
+        "call | rejected |" % reps)
+    say("|---|---|---|---|---|---|")
+    for k in (1, 8):
+        args = ("nodding", "emphatic")
+        for fn in (sampling.sample, lambda *a, **kw: sampling.screen(*a, **kw).u):
+            fn(jax.random.key(0), *args, num_samples=k)  # compile / thread pool
+        plain, screened, cands, rejected = [], [], 0, 0
+        for i in range(reps):
+            key = jax.random.key(i)
+            t0 = time.perf_counter()
+            sampling.sample(key, *args, num_samples=k)
+            plain.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            res = sampling.screen(key, *args, num_samples=k)
+            screened.append(time.perf_counter() - t0)
+            cands, rejected = cands + res.candidates, rejected + res.rejected
+        p, s = 1e3 * np.median(plain), 1e3 * np.median(screened)
+        say(f"| jg.sample(key, {args[0]!r}, {args[1]!r}, num_samples={k}) | {p:.2f} | {s:.2f} | {s / p:.0f}x | "
+            f"{cands / reps:.1f} | {rejected / reps:.2f} |")
+    say("Screened: candidates drawn, rolled out in one batch (engine auto), infeasible ones dropped and redrawn; "
+        "the cost is the simulation of 5 s of motion per candidate.")
 
 
 def ablation_rollouts(k_div: int = 30, seeds: int = 5, deterministic: int = 3, generative: int = 3,
