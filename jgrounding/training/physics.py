@@ -137,5 +137,5 @@ def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: Phy
         keys = jax.random.split(k_train, len(teacher.seeds))
         states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
         states, _ = run(states, 2.0 * jnp.asarray(targets) - 1.0)  # controls in [-1, 1], as the methods train
-        params = states.params
+        params = training.eval_params(states)
     return dataclasses.replace(teacher, params=params, losses=None), report
