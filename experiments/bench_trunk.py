@@ -32,7 +32,7 @@ from jgrounding.sim import mjx as trunk_mjx
 from jgrounding.sim import model as tm
 
 ROOT = Path(__file__).resolve().parent.parent
-_CACHED = ("import sys, time, numpy as np; from jgrounding import trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
+_CACHED = ("import sys, time, numpy as np; from jgrounding.sim import mjx as trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
            "u = np.zeros((int(sys.argv[2]), 150, 4)); t = time.perf_counter(); "
            "trunk_mjx.rollout_mjx(u, True, chunk=int(sys.argv[2])); print(time.perf_counter() - t - float(sys.argv[3]))")
 
@@ -155,7 +155,7 @@ def screening_latency(say, reps: int = 20) -> None:
     """Latency of screened sampling (``jg.sample(..., screen=True)``) beside plain ``jg.sample``, warm, median."""
     import jax
 
-    from jgrounding import sampling
+    from jgrounding.generators import sampling
 
     say("")
     say("| public call (warm, median of %d) | plain ms | screened ms | screened / plain | candidates simulated per "

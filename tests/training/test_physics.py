@@ -3,7 +3,7 @@ import jax
 import numpy as np
 import pytest
 
-from jgrounding import physics_training as pt
+from jgrounding.training import physics as pt
 
 
 def test_refill_keeps_tuples_balanced_and_drops_every_rejected_candidate():
@@ -17,7 +17,8 @@ def test_refill_keeps_tuples_balanced_and_drops_every_rejected_candidate():
 
 @pytest.mark.slow
 def test_finetune_runs_every_seed_and_reports_the_screen():
-    from jgrounding import load_library, methods, semantics
+    from jgrounding import load_library, semantics
+    from jgrounding.generators import methods
     from jgrounding.training import TrainConfig
 
     lib, emb = load_library(), semantics.intent_embeddings()
