@@ -163,7 +163,7 @@ def screening_latency(say, reps: int = 20) -> None:
     say("|---|---|---|---|---|---|")
     for k in (1, 8):
         args = ("nodding", "emphatic")
-        for fn in (sampling.sample, lambda *a, **kw: sampling.screen(*a, **kw).u):
+        for fn in (sampling.sample, lambda *a, **kw: sampling.screened(*a, **kw).u):
             fn(jax.random.key(0), *args, num_samples=k)  # compile / thread pool
         plain, screened, cands, rejected = [], [], 0, 0
         for i in range(reps):
@@ -172,7 +172,7 @@ def screening_latency(say, reps: int = 20) -> None:
             sampling.sample(key, *args, num_samples=k)
             plain.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
-            res = sampling.screen(key, *args, num_samples=k)
+            res = sampling.screened(key, *args, num_samples=k)
             screened.append(time.perf_counter() - t0)
             cands, rejected = cands + res.candidates, rejected + res.rejected
         p, s = 1e3 * np.median(plain), 1e3 * np.median(screened)

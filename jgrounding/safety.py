@@ -153,16 +153,21 @@ def release(u, *, num_channels: int | None = None) -> np.ndarray:
     return arr
 
 
-def gated(fn):
+def gated(fn, *, continuity: bool = False):
     """``jit(make_safe(fn(*args)))`` whose results leave only through :func:`release`.
 
     Args:
       fn: a pure function returning actuation ``(..., T, N_u)``.
+      continuity: the compiled function then takes the robot's current command ``(N_u,)`` first and
+        blends the result in from it (guarantee 4): ``call(current, *args)``.
     Returns:
       ``call(*args) -> np.ndarray``: the gated float32 result (inside the bounds, slew-limited, finite or
       refused). ``call.compiled`` is the jitted function (for lowering, or timing the compiled core).
     """
-    compiled = jax.jit(lambda *args: make_safe(fn(*args)))
+    if continuity:
+        compiled = jax.jit(lambda current, *args: make_safe(fn(*args), MAX_SLEW, current))
+    else:
+        compiled = jax.jit(lambda *args: make_safe(fn(*args)))
 
     def call(*args) -> np.ndarray:
         return release(compiled(*args))

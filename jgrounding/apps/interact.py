@@ -85,7 +85,7 @@ def main(argv=None, stdin=None, stdout=None) -> int:
         print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
         key = jax.random.fold_in(jax.random.key(args.seed), turn)
         if args.screen:
-            res = sampling.screen(key, g.intent, g.intensity, num_samples=8, current=current)
+            res = sampling.screened(key, g.intent, g.intensity, num_samples=8, current=current)
             u = res.u
             print(f"   screened: {res.rejected} of {res.candidates} candidates rejected as infeasible", file=stdout)
         else:

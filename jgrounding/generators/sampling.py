@@ -16,6 +16,8 @@ from __future__ import annotations
 import collections
 import dataclasses
 import functools
+import logging
+import time
 from pathlib import Path
 
 import jax
@@ -62,11 +64,14 @@ class Model:
         self._programs: dict = {}
         self._single: dict = {}  # (intent, intensity) -> device index arrays of a single-tuple call
         self._zero = jax.device_put(np.int32(0))
+        self._rest = jax.device_put(np.zeros(trained.num_tendons, np.float32))
 
-    def program(self, sampler: str, steps: int, bucket: int):
-        """Gated ``(intent (B,), intensity (B,), first (), key) -> u (B, 150, N_u)`` float32 numpy, B = bucket;
-        row ``i`` draws its noise from ``fold_in(key, first + i)``."""
-        cache_key = (sampler, steps, bucket)
+    def program(self, sampler: str, steps: int, bucket: int, continuity: bool = True):
+        """Gated ``(current (N_u,), intent (B,), intensity (B,), first (), key) -> u (B, 150, N_u)`` float32
+        numpy, B = bucket, blended in from the robot's ``current`` command (without ``continuity``: no
+        ``current`` argument, first step as the model made it); row ``i`` draws its noise from
+        ``fold_in(key, first + i)``."""
+        cache_key = (sampler, steps, bucket) if continuity else (sampler, steps, bucket, "no-current")
         if cache_key not in self._programs:
             tr, params, emb = self.trained, self._params, self._emb
 
@@ -80,8 +85,15 @@ class Model:
                 keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(first + jnp.arange(bucket, dtype=jnp.int32))
                 return jax.vmap(row)(intent, intensity, keys)
 
-            self._programs[cache_key] = safety.gated(run)
+            self._programs[cache_key] = safety.gated(run, continuity=continuity)
         return self._programs[cache_key]
+
+    def _current(self, current):
+        """``(program prefix args, continuity)`` for the robot's current command (validated by the gate)."""
+        start = safety.current_command(current, self.trained.num_tendons)
+        if start is None:
+            return (), False
+        return ((self._rest if not start.any() else jax.device_put(start)),), True
 
     def _check(self, num_samples, sampler, steps) -> tuple[str, int]:
         if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
@@ -96,10 +108,11 @@ class Model:
         return sampler, int(steps) if self.generator != "cnn" else 1
 
     def sample(self, key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None,
-               steps: int = 50) -> np.ndarray:
+               steps: int = 50, current=safety.REST) -> np.ndarray:
         """:func:`sample` for this model (same arguments, shapes and errors)."""
         sampler, steps = self._check(num_samples, sampler, steps)
         key = as_key(key)
+        prefix, continuity = self._current(current)
         ms, zs = _sequence(intent), _sequence(intensity)
         if ms is None and zs is None:
             m, z = _intent(intent), _intensity(intensity)
@@ -108,10 +121,11 @@ class Model:
                 if args is None:
                     self._check_covered([m], [z])
                     args = self._single[(m, z)] = jax.device_put((np.array([m], np.int32), np.array([z], np.int32)))
-                return self.program(sampler, steps, 1)(*args, self._zero, key)[0]
-            return self._run(key, np.array([m], np.int32), np.array([z], np.int32), num_samples, sampler, steps)[0]
+                return self.program(sampler, steps, 1, continuity)(*prefix, *args, self._zero, key)[0]
+            return self._run(key, np.array([m], np.int32), np.array([z], np.int32), num_samples, sampler, steps,
+                             prefix, continuity)[0]
         m, z = _indices(ms, zs, intent, intensity)
-        return self._run(key, m, z, num_samples, sampler, steps)
+        return self._run(key, m, z, num_samples, sampler, steps, prefix, continuity)
 
     def _check_covered(self, ms, zs) -> None:
         if self.covered is None:
@@ -122,7 +136,7 @@ class Model:
                 raise ValueError(f"checkpoint {self.name} was trained on a library without ({INTENTS[m]}, "
                                  f"{INTENSITIES[z]}); its tuples: {names}")
 
-    def _run(self, key, m, z, k, sampler, steps) -> np.ndarray:
+    def _run(self, key, m, z, k, sampler, steps, prefix=(), continuity=False) -> np.ndarray:
         """``(N, K, 150, N_u)`` for index arrays ``m, z (N,)``, in chunks of at most the largest bucket."""
         self._check_covered(m, z)
         total = len(m) * k
@@ -137,7 +151,8 @@ class Model:
             bucket = next(b for b in BUCKETS if b >= n)
             pad = bucket - n
             cm, cz = np.pad(rows_m[start:start + n], (0, pad)), np.pad(rows_z[start:start + n], (0, pad))
-            out[start:start + n] = self.program(sampler, steps, bucket)(cm, cz, np.int32(start), key)[:n]
+            out[start:start + n] = self.program(sampler, steps, bucket, continuity)(*prefix, cm, cz, np.int32(start),
+                                                                                    key)[:n]
         return out.reshape(len(m), k, methods.T, n_u)
 
 
@@ -259,7 +274,7 @@ load.cache_clear = model.cache_clear  # forgets the loaded models (a test's "new
 
 
 def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None, steps: int = 50,
-           checkpoint: str | Path | None = None) -> np.ndarray:
+           checkpoint: str | Path | None = None, current=safety.REST, screen: bool = False) -> np.ndarray:
     """Sample tendon actuation for (intent, intensity) tuples (names or indices).
 
     Args:
@@ -269,6 +284,12 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
       sampler: ``euler`` (default) | ``midpoint`` | ``rk4`` for a rectified flow; ``ancestral`` | ``ddim``
         for a DDPM checkpoint. steps: S sampler steps, 1..1000.
       checkpoint: a checkpoint directory (default: the shipped Tuple + Spline + RF).
+      current: the command the robot holds now: ``"rest"`` (default, every tendon slack), a ``(N_u,)``
+        command in [0, 1] (e.g. the last step of the previous response), or None. The trajectories blend
+        in from it within the slew bound (:mod:`jgrounding.safety`, guarantee 4), so consecutive
+        responses never jump; None returns the model's own first step (what evaluation compares).
+      screen: simulate candidates on the trunk and return only feasible ones (:func:`screened`, which also
+        reports how many were rejected); raises :class:`ScreeningError` if too few pass within its budget.
     Returns:
       float32 actuation inside [0, 1]: ``(150, N_u)`` for one tuple and ``num_samples == 1``,
       ``(K, 150, N_u)`` for one tuple, ``(N, K, 150, N_u)`` for sequences; N_u = 4 for the shipped
@@ -276,4 +297,96 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
       library without a requested tuple (an imported library covers only the tuples recorded) is refused
       with a ``ValueError`` listing its tuples.
     """
-    return model(checkpoint).sample(key, intent, intensity, num_samples, sampler=sampler, steps=steps)
+    if screen is not False:
+        if screen is not True:
+            raise ValueError(f"screen must be True or False, got {screen!r}")
+        return screened(key, intent, intensity, num_samples, sampler=sampler, steps=steps, checkpoint=checkpoint,
+                        current=current).u
+    return model(checkpoint).sample(key, intent, intensity, num_samples, sampler=sampler, steps=steps,
+                                    current=current)
+
+
+class ScreeningError(ValueError):
+    """Raised when too few candidates pass the simulated trunk's feasibility check within the budget."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Screened:
+    """Result of :func:`screened`: only samples the simulated trunk found feasible, and the bookkeeping."""
+
+    u: np.ndarray  # as sample() returns it: (150, N_u), (K, 150, N_u) or (N, K, 150, N_u); every one feasible
+    candidates: int  # trajectories drawn and simulated, all tuples together
+    rejected: int  # of them, infeasible
+    rounds: int  # draw -> simulate rounds
+    seconds: float  # wall time of the simulation
+    engine: str  # the trunk engine used
+
+
+SCREEN_BUDGET = 64  # default: at most this many candidates per tuple (4 x num_samples when larger)
+
+
+def screened(key, intent, intensity, num_samples: int = 1, *, budget: int | None = None, engine: str = "auto",
+             **sample_kwargs) -> Screened:
+    """Screened sampling: draw candidates, roll them out on the trunk in one batch per round and keep the
+    feasible ones (:func:`jgrounding.sim.feasible`: stable, contact force within bounds, slow tip near
+    the user) until every tuple has ``num_samples``.
+
+    Args:
+      key, intent, intensity, num_samples, **sample_kwargs: as :func:`sample` (``sampler``, ``steps``,
+        ``checkpoint``, ``current``). The candidates are the trajectories that would be emitted, blended in
+        from ``current``; they are simulated from the trunk at rest (exact for the default ``"rest"``).
+      budget: candidates per tuple at most (default ``max(SCREEN_BUDGET, 4 * num_samples)``).
+      engine: :func:`jgrounding.sim.rollout` engine (``auto``: native on CPU, MJX on an accelerator).
+    Returns:
+      :class:`Screened`: ``u`` shaped as :func:`sample` returns it, the candidates simulated, how many
+      were rejected, the rounds and the simulation time. Round r draws with ``fold_in(key, r)``.
+    Raises:
+      ScreeningError (a ``ValueError``) when, for some tuple, fewer than ``num_samples`` of ``budget``
+      candidates pass.
+    """
+    from jgrounding import sim
+    from jgrounding.evaluation import physics
+
+    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
+            or not 1 <= num_samples <= MAX_SAMPLES:
+        raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
+    budget = max(SCREEN_BUDGET, 4 * int(num_samples)) if budget is None else budget
+    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or not num_samples <= budget <= MAX_SAMPLES:
+        raise ValueError(f"budget must be an integer in num_samples..{MAX_SAMPLES} (candidates per tuple), "
+                         f"got {budget!r}")
+    engine = sim.resolve_engine(engine)
+    key = as_key(key)
+    single = _sequence(intent) is None and _sequence(intensity) is None
+    kept, drawn, passed, seconds, rounds = None, 0, 0, 0.0, 0
+    while drawn < budget:
+        missing = num_samples - (min(len(k) for k in kept) if kept else 0)
+        if missing <= 0:
+            break
+        c = int(min(budget - drawn, missing + max(2, -(-missing // 4))))  # a few spare for the rejections
+        u = np.asarray(sample(jax.random.fold_in(key, rounds), intent, intensity, num_samples=c, **sample_kwargs))
+        u = u.reshape(-1, c, *u.shape[-2:])  # (N, c, 150, N_u)
+        if u.shape[-1] != sim.NUM_CHANNELS:
+            raise ValueError(f"screening simulates the built-in {sim.NUM_CHANNELS}-tendon trunk; this checkpoint "
+                             f"has {u.shape[-1]} tendons")
+        t0 = time.perf_counter()
+        ok = (physics.margins(u.reshape(-1, *u.shape[-2:]), engine=engine) >= 0).reshape(u.shape[:2])
+        seconds += time.perf_counter() - t0
+        kept = kept or [[] for _ in range(len(u))]
+        for j in range(len(u)):
+            kept[j].extend(u[j][ok[j]][: num_samples - len(kept[j])])
+        drawn, passed, rounds = drawn + c, passed + int(ok.sum()), rounds + 1
+    have = np.array([len(k) for k in kept])
+    if (have < num_samples).any():
+        short = np.flatnonzero(have < num_samples)
+        raise ScreeningError(
+            f"screening: {len(short)} of {len(kept)} tuple(s) got fewer than {num_samples} feasible samples within "
+            f"the budget of {budget} candidates per tuple (worst: {have.min()} passed; first such tuple: "
+            f"position {short[0]}). Feasible = stable, contact force <= {sim.MAX_CONTACT_FORCE} N and tip speed "
+            f"<= {sim.MAX_TIP_SPEED_NEAR_USER} m/s within {sim.NEAR_USER_DISTANCE} m of the user; pass a larger "
+            "budget= or ask for fewer samples")
+    out = np.stack([np.stack(k) for k in kept])  # (N, K, 150, N_u)
+    if single:
+        out = out[0, 0] if num_samples == 1 else out[0]
+    total = drawn * len(kept)
+    logging.getLogger(__name__).info("screened %d candidates, %d rejected as infeasible", total, total - passed)
+    return Screened(u=out, candidates=total, rejected=total - passed, rounds=rounds, seconds=seconds, engine=engine)

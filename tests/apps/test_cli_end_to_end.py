@@ -88,3 +88,31 @@ def test_interactive_loop_keeps_history(tmp_path):
     text = out.getvalue()
     assert "-> (greeting," in text and "greeting/" in text.split(":history")[-1] + text
     assert (tmp_path / "turn001.png").stat().st_size > 1000
+
+
+def test_cli_screen_and_current_flags(tmp_path):
+    from jgrounding import sim
+
+    p = run("jgrounding", "--intent", "nodding", "--intensity", "emphatic", "--samples", "3", "--no-render",
+            "--screen", "--current", "0.4,0,0.2,0", "--jsonl", "--out", str(tmp_path))
+    assert p.returncode == 0, p.stderr
+    screen = [json.loads(line) for line in p.stdout.splitlines() if '"screen"' in line][0]
+    assert screen["candidates"] >= 3 and 0 <= screen["rejected"] <= screen["candidates"] - 3
+    u = np.load(tmp_path / "samples.npy")
+    assert sim.feasible(sim.rollout(u)).all()
+    assert safety.is_safe(u, current=np.array([0.4, 0, 0.2, 0])) and np.allclose(u[:, 0], [0.4, 0, 0.2, 0])
+    bad = run("jgrounding", "--intent", "nodding", "--current", "0.4,2", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "--current must be 'rest' or 4" in bad.stderr
+
+
+def test_interactive_stream_of_responses_never_exceeds_the_slew_bound(tmp_path):
+    import io
+
+    from jgrounding.apps import interact
+
+    said = "Wave hello to the user!\nShake your trunk: no!\nCurl up shyly.\nCelebrate wildly!\n:quit\n"
+    interact.main(["--out", str(tmp_path)], stdin=io.StringIO(said), stdout=io.StringIO())
+    stream = np.load(tmp_path / "stream.npy")  # every turn's command, in order, as sent to the robot
+    assert stream.shape == (4 * 150, 4)
+    steps = np.abs(np.diff(np.concatenate([np.zeros((1, 4)), stream]), axis=0))  # from rest, across turns
+    assert steps.max() <= safety.MAX_SLEW + 1e-6

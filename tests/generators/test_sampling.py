@@ -76,3 +76,41 @@ def test_fuzzed_public_calls_are_all_safe():
 
     counts = bench_fuzz.fuzz(seed=1, trajectories=20_000)  # `python -m experiments.bench fuzz`: >= 1,000,000
     assert counts["bad"] == 0 and counts["trajectories"] >= 20_000 and len(counts["configs"]) >= 4
+
+def test_sample_blends_in_from_the_current_command_and_a_stream_never_jumps():
+    key = jax.random.key(3)
+    raw = jg.sample(key, "beckoning", "emphatic", current=None)  # the model's own first step
+    assert jg.sample(key, "beckoning", "emphatic")[0] == pytest.approx(np.zeros(4))  # default: from rest
+    held = np.array([0.3, 0.1, 0.6, 0.0], np.float32)
+    u = jg.sample(key, "beckoning", "emphatic", num_samples=4, current=held)
+    assert jg.safety.is_safe(u, current=held) and np.allclose(u[:, 0], held)
+    np.testing.assert_allclose(u[0, jg.safety.BLEND_STEPS:], raw[jg.safety.BLEND_STEPS:], atol=1e-5)
+    # a stream of consecutive responses, each from where the last left the robot, never exceeds the bound
+    stream, current = [np.zeros((1, 4), np.float32)], "rest"
+    for turn, (m, z) in enumerate([("greeting", 3), ("refusing", 3), ("coiling", 0), ("celebrating", 3),
+                                   ("withdrawal", 2), ("embracing", 3)]):
+        out = jg.sample(jax.random.key(turn), m, z, current=current)
+        stream.append(out)
+        current = out[-1]
+    assert np.abs(np.diff(np.concatenate(stream), axis=0)).max() <= jg.safety.MAX_SLEW + 1e-6
+    with pytest.raises(ValueError, match="rest"):
+        jg.sample(key, "beckoning", "emphatic", current="home")
+
+
+@pytest.mark.slow
+def test_screened_samples_all_pass_the_simulator_and_the_rejections_are_counted():
+    from jgrounding import sim
+
+    res = sampling.screened(jax.random.key(0), ["nodding", "comforting"], "emphatic", num_samples=6)
+    assert res.u.shape == (2, 6, 150, 4) and res.candidates >= 12 and 0 <= res.rejected <= res.candidates - 12
+    assert sim.feasible(sim.rollout(res.u.reshape(-1, 150, 4))).all()
+    u = jg.sample(jax.random.key(0), "nodding", "emphatic", num_samples=3, screen=True)
+    assert u.shape == (3, 150, 4) and sim.feasible(sim.rollout(u)).all()
+
+
+def test_screening_that_cannot_pass_raises_a_clear_error(monkeypatch):
+    from jgrounding.evaluation import physics
+
+    monkeypatch.setattr(physics, "margins", lambda u, engine="auto": -np.ones(len(u)))  # nothing is feasible
+    with pytest.raises(sampling.ScreeningError, match="budget of 8 candidates"):
+        sampling.screened(jax.random.key(0), "nodding", "emphatic", num_samples=2, budget=8)
