@@ -64,7 +64,7 @@ def _loss(graphdef, data):
     return loss
 
 
-def _refill(keep: np.ndarray, controls: np.ndarray, lib_controls: dict, rng: np.random.Generator) -> np.ndarray:
+def refill(keep: np.ndarray, controls: np.ndarray, lib_controls: dict, rng: np.random.Generator) -> np.ndarray:
     """Fixed-size training targets from the kept candidates: ``keep (64, C)``, ``controls (64, C, D)`` ->
     ``(64, C, D)`` where each rejected slot holds a kept candidate of the same tuple (drawn with ``rng``),
     or one of the tuple's library realizations if none was kept. Tuples stay balanced and every seed's
@@ -132,7 +132,7 @@ def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: Phy
         report.append({"round": rnd, "simulated": int(flat.shape[0]), "kept": float(keep.mean()),
                        "feasible": float((margin >= 0).mean()), "seconds": seconds})
         controls = np.asarray(splines.fit(flat, num_controls=teacher.num_controls)).reshape(*u.shape[:3], -1)
-        targets = np.stack([np.concatenate([_refill(keep[i], controls[i], lib_by_tuple, rng).reshape(n_tuples * c, -1),
+        targets = np.stack([np.concatenate([refill(keep[i], controls[i], lib_by_tuple, rng).reshape(n_tuples * c, -1),
                                             lib_target]) for i in range(len(teacher.seeds))])
         keys = jax.random.split(k_train, len(teacher.seeds))
         states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)

@@ -10,7 +10,7 @@ def test_refill_keeps_tuples_balanced_and_drops_every_rejected_candidate():
     controls = np.arange(2 * 3 * 1, dtype=np.float32).reshape(2, 3, 1)  # tuple 0: 0, 1, 2; tuple 1: 3, 4, 5
     keep = np.array([[True, False, True], [False, False, False]])
     lib = {0: np.array([[10.0]]), 1: np.array([[20.0], [21.0]])}
-    out = pt._refill(keep, controls, lib, np.random.default_rng(0))
+    out = pt.refill(keep, controls, lib, np.random.default_rng(0))
     assert out[0, 0, 0] == 0 and out[0, 2, 0] == 2 and out[0, 1, 0] in (0, 2)  # a kept sample of tuple 0
     assert set(out[1, :, 0]) <= {20.0, 21.0}  # none kept: the tuple's library realizations
 
