@@ -102,7 +102,7 @@ def test_cli_screen_and_current_flags(tmp_path):
     assert sim.feasible(sim.rollout(u)).all()
     assert safety.is_safe(u, current=np.array([0.4, 0, 0.2, 0])) and np.allclose(u[:, 0], [0.4, 0, 0.2, 0])
     bad = run("jgrounding", "--intent", "nodding", "--current", "0.4,2", "--out", str(tmp_path))
-    assert bad.returncode == 2 and "--current must be 'rest' or 4" in bad.stderr
+    assert bad.returncode == 2 and "--current must be 'rest' or comma-separated" in bad.stderr
 
 
 def test_interactive_stream_of_responses_never_exceeds_the_slew_bound(tmp_path):
