@@ -12,7 +12,9 @@ Grounds the text to an (intent, intensity) tuple, samples K trajectories, and wr
 holds now (default ``rest``): the trajectories blend in from it within the slew bound. ``--screen``
 simulates the candidates on the trunk and keeps only feasible ones (stable, contact force and tip speed
 near the user within bounds), reporting how many were rejected. ``--jsonl`` prints one JSON object per
-event for scripts; ``--quiet`` prints only the output folder.
+event for scripts; ``--quiet`` prints only the output folder. A grounding below the calibrated confidence
+threshold does not drive the trunk: the command stream holds still at ``--current``
+(:data:`jgrounding.semantics.HOLD_STILL`) and the screen says so; ``--force`` drives the grounded tuple anyway.
 """
 
 from __future__ import annotations
@@ -73,8 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=_positive_samples, default=8, metavar="K",
                    help=f"number of trajectories to sample (1..{MAX_SAMPLES}, default 8)")
     p.add_argument("--out", default="grounding_out", metavar="DIR", help="output folder (default grounding_out)")
-    p.add_argument("--backend", choices=("embedded", "mllm"), default="embedded",
-                   help="semantic reduction backend (default embedded; mllm needs JGROUNDING_MLLM_URL)")
+    p.add_argument("--backend", choices=("embedded", "cues", "mllm"), default="embedded",
+                   help="semantic reduction backend (default embedded, which escalates low confidence to the MLLM "
+                        "when JGROUNDING_MLLM_URL is set; cues: the first cue-list reducer; mllm needs the URL)")
     p.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     p.add_argument("--sampler", choices=("euler", "midpoint", "rk4"), default="euler")
     p.add_argument("--steps", type=int, default=50, choices=(1, 2, 4, 8, 16, 25, 50, 100),
@@ -83,6 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the robot's current command, blended from within the slew bound (default rest)")
     p.add_argument("--screen", action="store_true",
                    help="simulate candidates on the trunk and keep only feasible ones (reports the rejected)")
+    p.add_argument("--force", action="store_true",
+                   help="drive the grounded tuple even when its confidence is below the calibrated threshold")
     p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
     p.add_argument("--checkpoint", metavar="DIR", help="sample from this checkpoint (e.g. one trained on your own "
                    "library with experiments.train --library; default: the shipped one)")
@@ -119,9 +124,9 @@ def run(args: argparse.Namespace) -> int:
     if args.intent is not None:
         intent, intensity = args.intent, args.intensity or "moderate"
         say("tuple", f"tuple: ({intent}, {intensity}) [given]", intent=intent, intensity=intensity)
-        confidence = None
+        confidence, hold = None, False
     else:
-        from jgrounding.semantics import ground
+        from jgrounding.semantics import HOLD_STILL, ground
 
         t0 = time.perf_counter()
         g = ground(args.text, backend=args.backend)
@@ -129,15 +134,27 @@ def run(args: argparse.Namespace) -> int:
         say("tuple", f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
             f"backend {g.backend}  [{1e3 * (time.perf_counter() - t0):.0f} ms]",
             intent=intent, intensity=intensity, confidence=confidence, backend=g.backend,
-            confident=bool(getattr(g, "confident", True)))
-        if not getattr(g, "confident", True):
-            say("warning", "warning: low confidence; the tuple above is a best guess "
-                f"({getattr(g, 'reason', '')})", reason=str(getattr(g, "reason", "")))
+            confident=g.confident)
+        hold = not g.confident and not args.force
+        if not g.confident:
+            action = ("holding still instead: " + HOLD_STILL + " (use --force to drive the tuple)" if hold
+                      else "driving it anyway (--force)")
+            say("warning", f"warning: low confidence ({g.reason}); {action}", reason=g.reason, hold_still=hold)
 
     t0 = time.perf_counter()
     kwargs = dict(num_samples=args.samples, sampler=args.sampler, steps=args.steps, checkpoint=args.checkpoint,
                   current=args.current)
-    if args.screen:
+    if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give
+        shape = (150, 4) if args.checkpoint is None else np.shape(sampling.sample(
+            jax.random.key(args.seed), intent, intensity, num_samples=1, steps=1, checkpoint=args.checkpoint))[-2:]
+        u = np.zeros((args.samples,) + tuple(shape), np.float32)
+        if args.current != "rest":
+            if len(args.current) != shape[-1]:
+                raise ValueError(f"--current has {len(args.current)} values; the generator drives {shape[-1]} tendons")
+            u[...] = np.asarray(args.current, np.float32)
+        say("hold", f"hold still: {u.shape[0]} constant command streams of shape {u.shape[1:]}",
+            num_samples=int(u.shape[0]), hold_still=True)
+    elif args.screen:
         res = sampling.screened(jax.random.key(args.seed), intent, intensity, **kwargs)
         u = res.u
         say("screen", f"screened on the trunk ({res.engine}): {res.candidates} candidates simulated, "
@@ -146,15 +163,17 @@ def run(args: argparse.Namespace) -> int:
             engine=res.engine)
     else:
         u = sampling.sample(jax.random.key(args.seed), intent, intensity, **kwargs)
-    u = np.asarray(u).reshape((-1,) + np.shape(u)[-2:])
-    say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]}, blended in from "
-        f"{'rest' if args.current == 'rest' else args.current} "
-        f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
+    if not hold:
+        u = np.asarray(u).reshape((-1,) + np.shape(u)[-2:])
+        say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]}, blended in from "
+            f"{'rest' if args.current == 'rest' else args.current} "
+            f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
 
     from jgrounding.sim import CONTROL_DT
 
     meta = export.tuple_meta(vocabulary.intent_index(intent), vocabulary.intensity_index(intensity),
-                             text=args.text, seed=args.seed, sample=0, confidence=confidence)
+                             text=args.text, seed=args.seed, sample=0, confidence=confidence,
+                             **({"hold_still": True} if hold else {}))
     files = {
         "tendons": plotting.tendon_figure(u, out / "tendons.png", title=f"{intent} / {intensity}"),
         "csv": str(write_atomic(out / "commands.csv",

@@ -3,7 +3,11 @@
 Type a response plan ("User seems sad; respond calmly") and see the grounded tuple, a tendon plot and,
 with ``:render``, the simulated motion. ``obs: <scene> | <what the user said>`` asks the MLLM for a
 response first (Eq. 2, needs JGROUNDING_MLLM_URL), with the short history of past tuples. Commands:
-``:help``, ``:history``, ``:render``, ``:quit``.
+``:help``, ``:history``, ``:render``, ``:force`` (drive the last low-confidence grounding anyway), ``:quit``.
+
+A grounding below the calibrated confidence threshold does not drive the trunk: the loop holds still
+(no motion is sampled or sent; :data:`jgrounding.semantics.HOLD_STILL`) and says so, unless started with
+``--force`` or told ``:force``.
 
 Each turn's trajectory continues from where the last one left the robot (the first from rest): the gate
 blends it in within the slew bound, so the command stream never jumps between responses. The stream
@@ -24,9 +28,10 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     stdin, stdout = stdin or sys.stdin, stdout or sys.stdout
     p = argparse.ArgumentParser(prog="python -m jgrounding.apps.interact", description="Interactive grounding loop.")
     p.add_argument("--out", default="interact_out")
-    p.add_argument("--backend", choices=("embedded", "mllm"), default="embedded")
+    p.add_argument("--backend", choices=("embedded", "cues", "mllm"), default="embedded")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--screen", action="store_true", help="keep only samples feasible on the simulated trunk")
+    p.add_argument("--force", action="store_true", help="drive groundings below the confidence threshold too")
     args = p.parse_args(argv)
 
     import jax
@@ -36,20 +41,21 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     from jgrounding.generators import sampling
     from jgrounding.io import write_atomic
     from jgrounding.sim import render
-    from jgrounding.semantics import ground
+    from jgrounding.semantics import HOLD_STILL, ground
 
     out = Path(args.out)
     history: list[tuple[str, str]] = []
     last = None
     current = "rest"  # the robot's command when the session starts
     stream = []
+    pending = None  # a low-confidence grounding held back, for :force
     turn = 0
     print("jgrounding interactive: type a response, 'obs: scene | utterance', or :help", file=stdout)
     for line in stdin:
         line = line.strip()
         if not line:
             continue
-        if line in (":quit", ":q", "exit"):
+        if line in (":quit", ":q", "exit", "quit"):
             break
         if line == ":help":
             print(HELP, file=stdout)
@@ -63,6 +69,9 @@ def main(argv=None, stdin=None, stdout=None) -> int:
             else:
                 print(f"motion: {render.render_motion(last, out / f'turn{turn:03d}.gif')}", file=stdout)
             continue
+        if line.startswith(":") and line != ":force":
+            print(f"unknown command {line!r}; commands: :help, :history, :render, :force, :quit", file=stdout)
+            continue
         text = line
         if line.startswith("obs:"):
             from jgrounding.semantics import mllm
@@ -74,15 +83,28 @@ def main(argv=None, stdin=None, stdout=None) -> int:
             except OSError as e:
                 print(f"MLLM unavailable ({e}); grounding the observation text directly", file=stdout)
                 text = f"{scene.strip()} {said.strip()}"
-        try:
-            g = ground(text, backend=args.backend)
-        except (ValueError, TypeError) as e:
-            print(f"error: {e}", file=stdout)
-            continue
+        if line == ":force":
+            if pending is None:
+                print("nothing held back to force", file=stdout)
+                continue
+            g, pending = pending, None
+            print(f"forcing ({g.intent}, {g.intensity})", file=stdout)
+        else:
+            try:
+                g = ground(text, backend=args.backend)
+            except (ValueError, TypeError) as e:
+                print(f"error: {e}", file=stdout)
+                continue
+            flag = "" if g.confident else f"  (low confidence: {g.reason})"
+            print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
+            if not g.confident and not args.force:
+                pending = g
+                print(f"   holding still: {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
+                stdout.flush()
+                continue
+        pending = None
         turn += 1
         history.append((g.intent, g.intensity))
-        flag = "" if g.confident else f"  (low confidence: {g.reason})"
-        print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
         key = jax.random.fold_in(jax.random.key(args.seed), turn)
         if args.screen:
             res = sampling.screened(key, g.intent, g.intensity, num_samples=8, current=current)

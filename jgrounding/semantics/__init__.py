@@ -1,7 +1,11 @@
 """Semantic reduction, Sec. III-A: an open-vocabulary response -> a bounded (intent, intensity) tuple.
 
-Backends behind one :func:`ground`: ``embedded`` (our JAX MiniLM encoder and Eq. (3), offline; the
-default) and ``mllm`` (an OpenAI-compatible server, Eq. (4), falling back to embedded).
+Backends behind one :func:`ground`: ``embedded`` (offline, the default: a trained head over our JAX MiniLM
+encoder, Eq. (3) with a learned mismatch and a confidence calibrated on the dev split), ``cues`` (the first,
+cue-list reducer: Eq. (3) with cosine prototypes; the baseline) and ``mllm`` (an OpenAI-compatible server,
+Eq. (4), falling back to embedded). A configured MLLM also takes over embedded groundings below the
+confidence threshold. Apps do not drive the trunk on a non-confident grounding unless forced: they
+fall back to :data:`HOLD_STILL`.
 ``python -m jgrounding.semantics --write-assets`` regenerates ``assets/intent_embeddings.npz``.
 """
 
@@ -12,21 +16,32 @@ import argparse
 import numpy as np
 
 from jgrounding.semantics.embedded import (  # noqa: F401  (re-exported)
-    ASSET, CONFIDENCE_THRESHOLD, MAX_CHARS, compute_intent_embeddings, embed, ground_embedded, intent_embeddings,
-    intent_scores,
+    ASSET, CONFIDENCE_THRESHOLD, MAX_CHARS, compute_intent_embeddings, embed, features, ground_cues, ground_embedded,
+    intent_embeddings, intent_scores,
 )
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
 
-BACKENDS = ("embedded", "mllm")
+# The neutral behaviour of the apps (CLI, interactive loop) when a grounding is not confident and not forced.
+HOLD_STILL = "no motion; the trunk keeps its current command (at rest: every tendon command 0)"
+BACKENDS = ("embedded", "cues", "mllm")
 
 
-def ground(text: str, *, backend: str = "embedded", **mllm_options) -> Grounding:
+def mllm_configured(**mllm_options) -> bool:
+    """Whether an MLLM endpoint is set (``url=`` or ``JGROUNDING_MLLM_URL``), so low confidence can escalate."""
+    from jgrounding.semantics import mllm
+
+    return bool(mllm.Config.from_env(url=mllm_options.get("url")).url)
+
+
+def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mllm_options) -> Grounding:
     """Reduce an open-vocabulary response to a bounded (intent, intensity) tuple (Eq. 3 / Eq. 4).
 
-    ``backend``: ``"embedded"`` (offline MiniLM, default) or ``"mllm"`` (OpenAI-compatible server;
-    falls back to embedded with a logged reason). Empty or non-string input raises; nonsense returns
-    ``confident=False`` with a reason.
+    ``backend``: ``"embedded"`` (offline: trained head over MiniLM, default), ``"cues"`` (the first
+    cue-list reducer, a baseline) or ``"mllm"`` (OpenAI-compatible server; falls back to embedded with a
+    logged reason). With ``escalate`` and an MLLM endpoint configured (``url=`` or ``JGROUNDING_MLLM_URL``),
+    an embedded grounding below the calibrated confidence threshold is asked of the MLLM instead.
+    Empty or non-string input raises; nonsense returns ``confident=False`` with a reason.
     """
     if not isinstance(text, str):
         raise TypeError(f"text must be a str, got {type(text).__name__}")
@@ -39,13 +54,18 @@ def ground(text: str, *, backend: str = "embedded", **mllm_options) -> Grounding
     except UnicodeEncodeError as e:
         raise ValueError(f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
                          "give a str that encodes as UTF-8") from None
-    if backend == "embedded":
-        return ground_embedded(text)
-    if backend == "mllm":
-        from jgrounding.semantics import mllm
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
+    if backend == "cues":
+        return ground_cues(text)
+    from jgrounding.semantics import mllm
 
+    if backend == "mllm":
         return mllm.ground_mllm(text, **mllm_options)
-    raise ValueError(f"unknown backend {backend!r}; valid backends: embedded, mllm")
+    g = ground_embedded(text)
+    if g.confident or not escalate or not mllm_configured(**mllm_options):
+        return g
+    return mllm.ground_mllm(text, fallback=g, **mllm_options)
 
 
 def main(argv=None) -> int:

@@ -1,6 +1,9 @@
-"""Morphology-aligned semantic reduction (Sec. III-A): response text r -> bounded tuple (m, z).
+"""Morphology-aligned semantic reduction (Sec. III-A): response text r -> bounded tuple (m, z), offline.
 
-The embedded backend implements Eq. (3) literally, offline:
+``ground_embedded`` (the default backend) is Eq. (3) with a learned mismatch: the trained head of
+:mod:`jgrounding.semantics.head` over the features below, argmin over the 16 x 4 tuples of
+-log p(m | r) - log p(z | r). ``ground_cues`` (backend ``"cues"``, the first reducer, kept as the baseline and
+as features of the head) implements Eq. (3) literally with hand-written cue lists:
 
     (m, z) = argmin_{m, z}  L_sem(r, d_{m,z}),   L_sem = (1 - cos(E(r), E(d_m)))  +  w_z |z - z_hat(r)| / 3
 
@@ -33,7 +36,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 ASSET = Path(__file__).resolve().parents[2] / "assets" / "intent_embeddings.npz"
 MAX_CHARS = 4000          # ground() reads at most this many characters
 MAX_TOKENS = 256          # the encoder truncates here (all-MiniLM-L6-v2's max_seq_length)
-CONFIDENCE_THRESHOLD = 0.35  # below it a Grounding is flagged confident=False
+CONFIDENCE_THRESHOLD = 0.35  # the cue-list reducer's threshold (the trained head ships its own, calibrated on dev)
 MIN_SIMILARITY = 0.30     # best intent score under which nothing in spec C resembles the text
 INTENSITY_WEIGHT = 0.6
 
@@ -226,8 +229,60 @@ def intent_scores(r: np.ndarray, text: str) -> np.ndarray:
     return scores + LEXICAL_WEIGHT * lexical
 
 
+def cue_features(r: np.ndarray, text: str) -> np.ndarray:
+    """The cue-list reducer's evidence for one text ``(20,)``: Eq. (3) intent scores (16) and degree cues
+    (degree estimate / 3, whether there was one, exclamation marks / 3, shouting)."""
+    cue = degree_estimate(text)
+    shouted = [w for w in re.findall(r"\b[A-Z]{2,}\b", text) if w not in {"OK", "TV", "AI", "ID"}]
+    degree = [1.0 / 3 if cue is None else cue / 3, float(cue is not None), min(text.count("!"), 3) / 3,
+              float(len(shouted) >= 2)]
+    return np.concatenate([intent_scores(r, text), degree]).astype(np.float32)
+
+
+def features(texts, use_eq3: bool = True) -> np.ndarray:
+    """Inputs of the trained head ``(N, 404)``: embedding (384) + :func:`cue_features` (20), or ``(N, 384)``."""
+    texts = list(texts)
+    emb = embed(texts)
+    if not use_eq3:
+        return emb
+    return np.concatenate([emb, np.stack([cue_features(r, t) for r, t in zip(emb, texts)])], axis=1)
+
+
+def _caveats(text: str) -> list[str]:
+    """Reasons, independent of the model, why a text cannot be grounded with confidence."""
+    reasons = []
+    if _english_fraction(text) < 0.5:
+        reasons.append("mostly non-English text")
+    if not re.findall(r"[A-Za-z]{2,}", text):
+        reasons.append("no words")
+    if len(text) > 250 and _num_tokens(text) > MAX_TOKENS:  # a token spans at least one character
+        reasons.append(f"long text: only its first {MAX_TOKENS} tokens were read")
+    return reasons
+
+
 def ground_embedded(text: str) -> Grounding:
-    """Eq. (3) offline: argmin over (m, z) of L_sem(r, d_{m,z}) with our MiniLM; see the module docstring."""
+    """Eq. (3) offline with the trained head (:mod:`jgrounding.semantics.head`): argmin over the 16 x 4 tuples
+    of -log p(m | r) - log p(z | r); confident when p(m | r) reaches the threshold calibrated on dev."""
+    from jgrounding.semantics import head as semantic_head
+
+    head = semantic_head.load()
+    x = features([text], head.config.use_eq3)
+    p_intent, p_intensity = (np.asarray(a) for a in semantic_head.predict(head.params, x, head.temperature))
+    ms, zs, confs = semantic_head.decide(p_intent, p_intensity)
+    m, z, conf = int(ms[0]), int(zs[0]), float(confs[0])
+    reasons = _caveats(text)
+    if p_intent[0, semantic_head.NONE] > conf:
+        reasons.append(f"reads as no behaviour at all (p = {p_intent[0, semantic_head.NONE]:.2f})")
+    if conf < head.threshold and not reasons:
+        reasons.append(f"confidence {conf:.2f} is below the calibrated threshold {head.threshold:.2f}")
+    return Grounding(intent=INTENTS[m], intensity=INTENSITIES[z], confidence=round(conf, 4), backend="embedded",
+                     confident=not reasons, reason="; ".join(reasons),
+                     scores=tuple(round(float(p), 4) for p in p_intent[0, :len(INTENTS)]))
+
+
+def ground_cues(text: str) -> Grounding:
+    """Eq. (3) literally, with cue-list prototypes (the first embedded reducer, kept as a baseline and as
+    features of the trained head): argmin over (m, z) of L_sem(r, d_{m,z}); see the module docstring."""
     _, _, inten = _prototypes()
     r = embed([text])[0]
     intent_sim = intent_scores(r, text)
@@ -262,7 +317,7 @@ def ground_embedded(text: str) -> Grounding:
     if not confident and not reasons:
         reasons.append("ambiguous between intents")
     return Grounding(intent=INTENTS[int(m)], intensity=INTENSITIES[int(z)], confidence=round(confidence, 4),
-                     backend="embedded", confident=confident, reason="; ".join(reasons),
+                     backend="cues", confident=confident, reason="; ".join(reasons),
                      scores=tuple(round(float(s), 4) for s in intent_sim))
 
 

@@ -132,8 +132,12 @@ def parse_reply(text: str) -> tuple[str, str, float]:
 
 
 def ground_mllm(text: str, *, url: str | None = None, model: str | None = None, api_key: str | None = None,
-                retries: int | None = None, timeout_s: float | None = None):
-    """Eq. (4) through an MLLM; falls back to the embedded reducer (reason logged and returned)."""
+                retries: int | None = None, timeout_s: float | None = None, fallback=None):
+    """Eq. (4) through an MLLM; falls back to the embedded reducer (reason logged and returned).
+
+    ``fallback``: an embedded Grounding already computed for ``text`` (an escalation of low confidence);
+    a reply then says so in its backend, and a failure returns ``fallback`` with the reason added.
+    """
     from jgrounding.semantics.embedded import ground_embedded
     from jgrounding.semantics.types import Grounding
 
@@ -144,6 +148,9 @@ def ground_mllm(text: str, *, url: str | None = None, model: str | None = None, 
     for attempt in range(cfg.retries + 1):
         try:
             intent, intensity, conf = parse_reply(_post(cfg, messages))
+            if fallback is not None:
+                return Grounding(intent, intensity, conf, "mllm (escalated)", True,
+                                 reason=f"escalated: embedded confidence {fallback.confidence:.2f} ({fallback.reason})")
             return Grounding(intent, intensity, conf, "mllm", True)
         except ValueError as e:  # a reply that breaks the schema: ask again, saying what was wrong
             problems.append(str(e))
@@ -154,7 +161,7 @@ def ground_mllm(text: str, *, url: str | None = None, model: str | None = None, 
             break
     reason = "MLLM fallback to embedded: " + "; ".join(problems)
     log.warning(reason)
-    g = ground_embedded(text)
+    g = fallback if fallback is not None else ground_embedded(text)
     return dataclasses.replace(g, backend="embedded (mllm fallback)", reason="; ".join(filter(None, [reason, g.reason])))
 
 

@@ -8,7 +8,7 @@ import jgrounding as jg
 from jgrounding import semantics
 from jgrounding.semantics import encoder
 
-REF = Path(__file__).with_name("data") / "minilm_reference.npz"
+REF = Path(__file__).resolve().parents[1] / "data" / "minilm_reference.npz"
 
 
 def test_encoder_reproduces_reference_embeddings():
@@ -61,5 +61,5 @@ def test_invalid_text_raises(bad, exc):
 
 
 def test_unknown_backend_names_the_choices():
-    with pytest.raises(ValueError, match="embedded, mllm"):
+    with pytest.raises(ValueError, match="embedded, cues, mllm"):
         jg.ground("hello", backend="gpt")

@@ -1,0 +1,195 @@
+"""Trained semantic head (Sec. III-A, Eq. 3 learned): frozen MiniLM features -> p(m | r), p(z | r).
+
+Eq. (3) keeps its meaning, with a learned mismatch in place of cosine distances:
+
+    (m, z) = argmin_{m in M, z in Z}  L_sem(r, m, z),   L_sem = -log p(m | r) - log p(z | r)
+
+so the answer is always one of the 16 x 4 tuples. ``p(m | r)`` is a softmax over the 16 intents plus one
+"no behaviour" class (interface commands, noise), whose mass lowers the confidence without ever being
+returned. ``p(z | r)`` is ordinal (cumulative-link) regression, P(z > k) = sigmoid(s(r) - theta_k) with
+ordered thresholds theta_0 < theta_1 < theta_2, so "subtle" and "emphatic" are far apart by construction.
+
+Features (``FEATURES`` wide) are the frozen sentence embedding (384), the Eq. (3) intent similarities of the
+cue-list reducer (16) and its degree cues (4). Parameters are a small pytree shipped in
+``assets/semantic_head.npz`` (``python -m tools.train_semantics`` regenerates it, deterministically).
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import io
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
+
+ASSET = Path(__file__).resolve().parents[2] / "assets" / "semantic_head.npz"
+NUM_CLASSES = NUM_INTENTS + 1  # the 16 intents and "none" (last)
+NONE = NUM_INTENTS
+EMBED_DIM = 384
+NUM_DEGREE = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class HeadConfig:
+    hidden: int = 128          # width of the intent MLP's hidden layer (0: linear)
+    z_hidden: int = 0          # width of the intensity scorer's hidden layer (0: linear score)
+    use_eq3: bool = True       # append the cue-list reducer's Eq. (3) scores and degree cues to the embedding
+    l2: float = 1e-4           # weight decay
+    learning_rate: float = 3e-3
+    steps: int = 400           # full-batch Adam steps
+    dropout: float = 0.1       # on the input features, intent branch
+    seed: int = 0
+
+    @property
+    def num_features(self) -> int:
+        return EMBED_DIM + (NUM_INTENTS + NUM_DEGREE if self.use_eq3 else 0)
+
+
+def init(key, cfg: HeadConfig) -> dict:
+    """Parameters: intent MLP (features -> 17 logits) and ordinal intensity scorer (features -> s, theta)."""
+    k_hidden, k_out, k_z, k_zh = jax.random.split(key, 4)
+    f, h, zh = cfg.num_features, cfg.hidden, cfg.z_hidden
+    glorot = jax.nn.initializers.glorot_normal()
+    params = {"z_w": glorot(k_z, (zh or f, 1)), "z_b": jnp.zeros(()), "z_theta0": jnp.array(-1.5),
+              "z_gaps": jnp.array([1.0, 1.0])}
+    if zh:
+        params |= {"z_w1": glorot(k_zh, (f, zh)), "z_b1": jnp.zeros(zh)}
+    if h:
+        params |= {"w1": glorot(k_hidden, (f, h)), "b1": jnp.zeros(h), "w2": glorot(k_out, (h, NUM_CLASSES)),
+                   "b2": jnp.zeros(NUM_CLASSES)}
+    else:
+        params |= {"w2": glorot(k_out, (f, NUM_CLASSES)), "b2": jnp.zeros(NUM_CLASSES)}
+    return params
+
+
+def intent_logits(params: dict, x):
+    """Args: x ``(N, F)`` features. Returns ``(N, 17)`` logits over the intents and "none"."""
+    if "w1" in params:
+        x = jax.nn.gelu(x @ params["w1"] + params["b1"])
+    return x @ params["w2"] + params["b2"]
+
+
+def thresholds(params: dict):
+    """The ordered cut points theta ``(3,)``: theta0, then positive gaps (softplus)."""
+    return params["z_theta0"] + jnp.concatenate([jnp.zeros(1), jnp.cumsum(jax.nn.softplus(params["z_gaps"]))])
+
+
+def intensity_log_probs(params: dict, x):
+    """Args: x ``(N, F)``. Returns ``(N, 4)`` log p(z | r) of the cumulative-link model."""
+    if "z_w1" in params:
+        x = jax.nn.gelu(x @ params["z_w1"] + params["z_b1"])
+    s = (x @ params["z_w"])[:, 0] + params["z_b"]
+    above = jax.nn.sigmoid(s[:, None] - thresholds(params)[None])  # P(z > k), (N, 3), decreasing in k
+    cdf = jnp.concatenate([jnp.ones_like(s)[:, None], above, jnp.zeros_like(s)[:, None]], axis=1)
+    return jnp.log(jnp.clip(cdf[:, :-1] - cdf[:, 1:], 1e-7, 1.0))
+
+
+def loss(params: dict, key, x, intent, intensity, weight, dropout: float = 0.0):
+    """Weighted cross-entropy of the intent (17-way) plus the ordinal intensity NLL (rows with intensity >= 0).
+
+    Args: x ``(N, F)``; intent ``(N,)`` in 0..16; intensity ``(N,)`` in 0..3 or -1 (no label); weight ``(N,)``.
+    """
+    keep = jax.random.bernoulli(key, 1.0 - dropout, x.shape) / (1.0 - dropout)
+    logp = jax.nn.log_softmax(intent_logits(params, x * keep))
+    ce = -jnp.take_along_axis(logp, intent[:, None], 1)[:, 0]
+    zlogp = intensity_log_probs(params, x)
+    has_z = intensity >= 0
+    zce = -jnp.take_along_axis(zlogp, jnp.maximum(intensity, 0)[:, None], 1)[:, 0] * has_z
+    return (jnp.sum(weight * ce) + jnp.sum(weight * zce)) / jnp.sum(weight)
+
+
+@functools.partial(jax.jit, static_argnames="cfg")
+def train(key, x, intent, intensity, weight, cfg: HeadConfig) -> tuple[dict, jnp.ndarray]:
+    """Full-batch AdamW for ``cfg.steps`` steps inside one ``lax.scan``.
+
+    Args: key; x ``(N, F)``; intent ``(N,)``; intensity ``(N,)`` (-1: none); weight ``(N,)``.
+    Returns: (params, losses ``(steps,)``).
+    """
+    init_key, dropout_key = jax.random.split(key)
+    params = init(init_key, cfg)
+    opt = optax.adamw(cfg.learning_rate, weight_decay=cfg.l2)
+
+    def step(carry, k):
+        p, s = carry
+        value, grads = jax.value_and_grad(loss)(p, k, x, intent, intensity, weight, cfg.dropout)
+        updates, s = opt.update(grads, s, p)
+        return (optax.apply_updates(p, updates), s), value
+
+    (params, _), losses = jax.lax.scan(step, (params, opt.init(params)), jax.random.split(dropout_key, cfg.steps))
+    return params, losses
+
+
+@jax.jit
+def predict(params: dict, x, temperature):
+    """Args: x ``(N, F)``; temperature scalar. Returns (intent probs ``(N, 17)``, intensity probs ``(N, 4)``)."""
+    return jax.nn.softmax(intent_logits(params, x) / temperature), jnp.exp(intensity_log_probs(params, x))
+
+
+def decide(p_intent: np.ndarray, p_intensity: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eq. (3) with the learned mismatch: argmin over the 16 x 4 tuples of -log p(m) - log p(z).
+
+    Args: p_intent ``(N, 17)``; p_intensity ``(N, 4)``. Returns intent ``(N,)``, intensity ``(N,)`` and the
+    confidence ``(N,)`` = p(m | r) of the chosen intent (mass on "none" lowers it).
+    """
+    m = np.argmax(p_intent[:, :NUM_INTENTS], axis=1)
+    z = np.argmax(p_intensity, axis=1)
+    return m, z, p_intent[np.arange(len(m)), m]
+
+
+def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
+    """ECE: sum over equal-width confidence bins of |accuracy - mean confidence| weighted by the bin's share."""
+    confidence, correct = np.asarray(confidence, float), np.asarray(correct, float)
+    idx = np.minimum((confidence * bins).astype(int), bins - 1)
+    return float(sum(abs(correct[idx == b].mean() - confidence[idx == b].mean()) * np.mean(idx == b)
+                     for b in range(bins) if np.any(idx == b)))
+
+
+def fit_temperature(logits_fn, intent, grid=np.exp(np.linspace(np.log(0.3), np.log(5.0), 60))) -> float:
+    """The temperature (grid search) that minimises the NLL of the true intents; ``logits_fn(T)`` gives probs."""
+    nll = [-np.mean(np.log(np.clip(logits_fn(t)[np.arange(len(intent)), intent], 1e-9, 1))) for t in grid]
+    return float(grid[int(np.argmin(nll))])
+
+
+def save(path, params: dict, cfg: HeadConfig, meta: dict) -> Path:
+    from jgrounding.io import write_atomic
+
+    arrays = {f"param/{k}": np.asarray(v) for k, v in params.items()}
+    buf = io.BytesIO()
+    np.savez(buf, **arrays, config=json.dumps(dataclasses.asdict(cfg)), meta=json.dumps(meta, sort_keys=True))
+    return write_atomic(path, buf.getvalue())
+
+
+@dataclasses.dataclass(frozen=True)
+class Head:
+    params: dict
+    config: HeadConfig
+    temperature: float
+    threshold: float
+    meta: dict
+
+
+@functools.lru_cache(maxsize=1)
+def load(path: str | None = None) -> Head:
+    """The shipped head (``assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it."""
+    path = Path(path or ASSET)
+    if not path.exists():
+        raise FileNotFoundError(f"{path} missing; regenerate it with `python -m tools.train_semantics`")
+    with np.load(path) as f:
+        params = {k.split("/", 1)[1]: jnp.asarray(f[k]) for k in f.files if k.startswith("param/")}
+        cfg = HeadConfig(**json.loads(str(f["config"])))
+        meta = json.loads(str(f["meta"]))
+    return Head(params, cfg, float(meta["temperature"]), float(meta["threshold"]), meta)
+
+
+def digest(params: dict) -> str:
+    h = hashlib.sha256()
+    for k in sorted(params):
+        h.update(k.encode() + np.asarray(params[k], np.float32).tobytes())
+    return h.hexdigest()[:16]

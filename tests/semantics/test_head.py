@@ -1,0 +1,86 @@
+"""The trained semantic head: ordinal intensity, the bounded decision, calibration, confidence gating."""
+import io
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jgrounding as jg
+from jgrounding.semantics import head as sh
+
+
+def test_ordinal_probabilities_are_a_distribution_with_ordered_cuts():
+    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, use_eq3=False))
+    params["z_gaps"] = jnp.array([-3.0, 2.0])  # softplus keeps even a negative gap positive
+    theta = np.asarray(sh.thresholds(params))
+    assert np.all(np.diff(theta) > 0)
+    x = jax.random.normal(jax.random.key(1), (5, sh.EMBED_DIM))
+    p = np.exp(np.asarray(sh.intensity_log_probs(params, x)))
+    np.testing.assert_allclose(p.sum(1), 1.0, atol=1e-5)
+
+
+def test_decision_is_a_vocabulary_tuple_and_none_only_lowers_confidence():
+    p_intent = np.zeros((1, sh.NUM_CLASSES))
+    p_intent[0, sh.NONE], p_intent[0, 3] = 0.7, 0.2  # "none" is the most likely class
+    p_intent[0, 5] = 0.1
+    m, z, conf = sh.decide(p_intent, np.array([[0.1, 0.2, 0.6, 0.1]]))
+    assert (m[0], z[0]) == (3, 2) and conf[0] == pytest.approx(0.2)
+
+
+def test_ece_by_hand():
+    # Bin [0.9, 1.0): confidences 0.95, 0.95, right once -> |0.5 - 0.95| * 2/4;
+    # bin [0.5, 0.6): 0.55, 0.55, both right -> |1 - 0.55| * 2/4.  ECE = 0.225 + 0.225.
+    assert sh.expected_calibration_error([0.95, 0.95, 0.55, 0.55], [1, 0, 1, 1]) == pytest.approx(0.45)
+
+
+def test_shipped_head_loads_with_calibration():
+    head = sh.load()
+    assert 0.0 < head.threshold < 1.0 and head.temperature > 0
+    assert sh.digest(head.params) == head.meta["params_digest"]
+
+
+@pytest.mark.parametrize("text", ["jkl;", "Ctrl-C", "print the invoice"])
+def test_junk_is_not_confident(text):
+    g = jg.ground(text)
+    assert g.intent in jg.INTENTS and not g.confident and g.reason
+
+
+def test_refusal_and_agreement_without_their_names():
+    assert jg.ground("No, you may not have that.").intent == "refusing"
+    assert jg.ground("Yes, that sounds good to me.").intent == "nodding"
+
+
+def test_cli_holds_still_below_threshold_unless_forced(tmp_path, capsys):
+    from jgrounding.apps import cli
+
+    assert cli.main(["jkl;", "--no-render", "--samples", "2", "--out", str(tmp_path / "a")]) == 0
+    assert "holding still" in capsys.readouterr().out
+    assert not np.load(tmp_path / "a" / "samples.npy").any()  # every tendon at rest: no motion
+    assert cli.main(["jkl;", "--force", "--no-render", "--samples", "2", "--out", str(tmp_path / "b")]) == 0
+    assert "driving it anyway" in capsys.readouterr().out
+    assert np.load(tmp_path / "b" / "samples.npy").any()
+
+
+def test_interactive_loop_emits_no_motion_for_junk(tmp_path):
+    from jgrounding.apps import interact
+
+    out = io.StringIO()
+    interact.main(["--out", str(tmp_path)], stdin=io.StringIO("jkl;\n:history\n:force\n:quit\n"), stdout=out)
+    text = out.getvalue()
+    before_force = text.split("forcing")[0]
+    assert "holding still" in before_force and "tendons:" not in before_force
+    assert "(empty)" in before_force  # nothing was driven, so nothing entered the history
+    assert "tendons:" in text.split("forcing")[1] and (tmp_path / "turn001.png").exists()
+
+
+def test_low_confidence_escalates_to_a_configured_mllm():
+    from test_mllm import FakeServer  # same folder (pytest puts it on the path)
+
+    with FakeServer(['{"intent": "resting", "intensity": "subtle"}']) as s:
+        low = jg.ground("jkl;", url=s.url)
+        high = jg.ground("Wave hello to the user!", url=s.url)
+        kept = jg.ground("jkl;", url=s.url, escalate=False)
+    assert low.backend == "mllm (escalated)" and "escalated" in low.reason and low.intent == "resting"
+    assert high.backend == "embedded" and high.confident and kept.backend == "embedded"
+    assert len(s.requests) == 1  # only the low-confidence text was asked
