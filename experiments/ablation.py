@@ -111,9 +111,9 @@ def physics(u, ref, tol, engine="auto"):
             "physics_s": float(sum(r["seconds"] for r in res)), "engine": res[0]["engine"]}
 
 
-def run(cfg: AblationConfig) -> dict:
+def run(cfg: AblationConfig, lib=None) -> dict:
     t_run = time.perf_counter()
-    lib = load_library(cfg.library)
+    lib = lib or load_library(cfg.library)
     num_tendons = int(lib.train.u.shape[-1])
     simulate = num_tendons == sim.NUM_CHANNELS
     if not simulate:
@@ -185,6 +185,12 @@ def run(cfg: AblationConfig) -> dict:
     refs["tuple_mean"] = {"success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
                           "rms": (float(r_mean.mean()), 0.0)}
     ref_phys["tuple_mean"] = physics(mean_u[None, :, None], ref_backbone, tol, cfg.engine) if simulate else NO_PHYSICS
+    # Brackets of the benchmark (library.brackets): expected values over the library, no sampling.
+    complete = len(lib.heldout) == 64 and len(lib.train) == 192  # an imported library may lack tuples
+    brackets, dist = (library.brackets(lib, metrics.TAUS), library.bracket_distances(lib)) if complete else ({}, {})
+    for name in BRACKETS if complete else ():
+        refs[name] = {"success": {t: (v, 0.0) for t, v in brackets[name].items()},
+                      "rms": (float(np.mean([x.mean() for x in dist[name]])), 0.0)}
     physics_s += sum(p["physics_s"] for p in ref_phys.values())
     return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
             "shape_tolerance": dataclasses.asdict(tol) if tol else None, "physics_s": physics_s, "run_s": time.perf_counter() - t_run,
@@ -202,8 +208,12 @@ def fmt4(ms):
     return f"{ms[0]:.4f} ± {ms[1]:.4f}"
 
 
+BRACKETS = ("wrong_intent", "far_intensity", "adjacent_intensity")
 REFERENCES = (("oracle", "Oracle (replay same tuple)"), ("tuple_mean", "Tuple mean (avg. of its 3 train realizations)"),
-              ("wrong_intent_any_intensity", "Wrong intent (replay)"))
+              ("wrong_intent_any_intensity", "Wrong intent (replay)"),
+              ("wrong_intent", "Bracket: wrong intent, same intensity (expected)"),
+              ("far_intensity", "Bracket: same intent, 2+ intensity levels away (expected)"),
+              ("adjacent_intensity", "Bracket: same intent, adjacent intensity (expected)"))
 
 
 def markdown(res: dict) -> str:
@@ -224,9 +234,10 @@ def markdown(res: dict) -> str:
         if name not in res["references"]:
             continue  # a partial (imported) library has nothing to replay for it
         s = res["references"][name]["success"][tau]
-        ph = res["reference_physics"][name]
-        lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {ph['shape_rms_m'][0]:.3f} | "
-                     f"{ph['shape_success'][0]:.3f} | – | {ph['feasible'][0]:.4f} | – |")
+        ph = res["reference_physics"].get(name)
+        phys = (f"{ph['shape_rms_m'][0]:.3f} | {ph['shape_success'][0]:.3f} | – | {ph['feasible'][0]:.4f}" if ph
+                else "– | – | – | –")
+        lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {phys} | – |")
     tol, n_sim = res["shape_tolerance"], sum(r["samples"] for r in res["rows"].values())
     lines += ["", "Succ.: one sample per held-out tuple within τ of its reference (the paper's protocol); "
               "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
@@ -326,6 +337,44 @@ def write(res: dict, out: str) -> None:
     write_atomic(outdir / "ablation_rms.npz", b.getvalue())
 
 
+def cross_validate(cfg: AblationConfig, folds: int) -> int:
+    """Run the ablation once per fold (realization k of every tuple held out) and pool the 4 x 64 targets."""
+    from jgrounding.export import write_atomic
+
+    t0 = time.perf_counter()
+    base = load_library()
+    per_fold = []
+    for k in range(folds):
+        fcfg = dataclasses.replace(cfg, runs=str(Path(cfg.runs) / f"fold{k}"))
+        res = run(fcfg, lib=library.fold(base, k))
+        per_fold.append(res)
+        print(f"fold {k}: " + ", ".join(f"{m} {r['success'][0]:.3f}" for m, r in res["rows"].items()), flush=True)
+    tau = float(cfg.tau)
+    lines = [f"{folds}-fold cross-validation (each realization held out once: {folds * 64} targets), "
+             f"{len(cfg.seeds)} seeds, {cfg.steps} steps, tau = {tau}.", "",
+             "| Method | Succ. (mean ± std over seeds, pooled over folds) | per fold |", "|---|---|---|"]
+    pooled = {}
+    for m in per_fold[0]["rows"]:
+        succ = np.stack([(f["per_sample_rms"][m][:, :, 0] <= tau).mean(axis=1) for f in per_fold])  # (folds, S)
+        pooled[m] = {"success": mean_std(succ.mean(axis=0)), "per_fold": [float(x) for x in succ.mean(axis=1)]}
+        lines.append(f"| {DISPLAY[m]} | {fmt(pooled[m]['success'])} | "
+                     + ", ".join(f"{x:.3f}" for x in pooled[m]["per_fold"]) + " |")
+    for name, label in REFERENCES:
+        vals = [f["references"][name]["success"][tau][0] for f in per_fold if name in f["references"]]
+        if vals:
+            lines.append(f"| {label} | {np.mean(vals):.3f} ± {np.std(vals):.3f} (over folds) | "
+                         + ", ".join(f"{x:.3f}" for x in vals) + " |")
+    run_s = time.perf_counter() - t0
+    lines += ["", f"Run time: {run_s:.0f} s on {per_fold[0]['machine']}."]
+    text = "\n".join(lines) + "\n"
+    write_atomic(Path(cfg.out) / "ablation_folds.md", text)
+    write_atomic(Path(cfg.out) / "ablation_folds.json", json.dumps(
+        {"config": dataclasses.asdict(cfg), "folds": folds, "rows": pooled, "run_s": run_s}, indent=1, default=float))
+    print(text)
+    print(f"{folds}-fold cross-validation run time: {run_s:.0f} s")
+    return 0
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true", help="tiny configuration for smoke tests")
@@ -336,6 +385,8 @@ def main(argv=None) -> int:
     p.add_argument("--devices", type=int, help="devices of the mesh (0 = all; default 1 = no mesh); see docs/distributed.md")
     p.add_argument("--library", help="library .npz to run Table II on (default: the shipped one), e.g. imported "
                    "with python -m jgrounding.library import; results go to results/<its name> unless --out")
+    p.add_argument("--folds", type=int, choices=(4,), help="4-fold cross-validation: each realization held out once "
+                   "(256 targets); writes <out>/ablation_folds.{md,json}")
     args = p.parse_args(argv)
     cfg = AblationConfig(**QUICK) if args.quick else AblationConfig()
     if args.seeds:
@@ -356,6 +407,8 @@ def main(argv=None) -> int:
         out = args.out or str(Path("results") / Path(args.library).stem)
         cfg = dataclasses.replace(cfg, library=args.library, out=out, runs=str(Path(out) / "runs"))
     t0 = time.perf_counter()
+    if args.folds:
+        return cross_validate(cfg, args.folds)
     res = run(cfg)
     write(res, cfg.out)
     from experiments import ablation_figures

@@ -68,7 +68,8 @@ def main(argv=None) -> int:
         text_emb = semantics.embed(texts).reshape(len(lib.train), -1, 384)
     tuples = sorted({(int(m), int(z)) for m, z in zip(lib.train.intent, lib.train.intensity)})
     meta = {"method": args.method, "seeds": list(seeds), "num_controls": args.num_controls,
-            "config": dataclasses.asdict(config), "library_sha256": library.file_hash(lib.path)}
+            "config": dataclasses.asdict(config), "library_sha256": library.file_hash(lib.path),
+            "library_version": lib.meta.get("library_version", "1 (unversioned)")}
     if args.library:  # the shipped library's checkpoints keep their old metadata
         meta.update(library_path=str(Path(lib.path).resolve()), num_tendons=num_tendons,
                     tuples=[f"{INTENTS[m]}/{INTENSITIES[z]}" for m, z in tuples])

@@ -10,6 +10,8 @@ predict the 150 x 4 trajectory directly. Every output passes through ``safety.ma
 from __future__ import annotations
 
 import dataclasses
+import json
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -231,11 +233,37 @@ def reflow(teacher: Trained, library, config: training.TrainConfig = training.Tr
                    jnp.concatenate(losses), teacher.num_tendons)
 
 
-def restore(path, method: str | None = None) -> Trained:
+def library_mismatch(path, meta: dict) -> str | None:
+    """Why checkpoint ``path`` (its ``meta``) does not belong to the library it would be used with, or ``None``.
+
+    The library is the one it recorded (``library_path``, when that file exists) or else the shipped
+    ``assets/library.npz``; a checkpoint that recorded no library sha256 is not judged."""
+    from jgrounding import library
+
+    digest = meta.get("library_sha256")
+    lib_path = Path(meta.get("library_path") or library.DEFAULT_PATH)
+    if not digest or not lib_path.is_file() or library.file_hash(lib_path) == digest:
+        return None
+    try:
+        current = json.loads(lib_path.with_suffix(".json").read_text()).get("library_version", "1 (unversioned)")
+    except (OSError, ValueError):
+        current = "unknown"
+    return (f"checkpoint {path} was trained on library version {meta.get('library_version', '1 (unversioned)')} "
+            f"(sha256 {digest[:12]}...), but {lib_path} is library version {current} (sha256 "
+            f"{library.file_hash(lib_path)[:12]}...); retrain it (python -m experiments.train --out {path}) or pass "
+            "allow_library_mismatch=True (--allow-library-mismatch) to use it anyway")
+
+
+def restore(path, method: str | None = None, *, allow_library_mismatch: bool = False) -> Trained:
     """A :class:`Trained` (every seed it holds) from a checkpoint directory written by the ablation or
     ``experiments.train``; ``method`` (optional) must match. ``ValueError`` naming the directory for an
-    unknown method or P, and whatever :func:`checkpoints.restore` refuses (vocabulary, shapes, NaN, digest)."""
+    unknown method or P, a checkpoint trained on another library version (:func:`library_mismatch`;
+    unless ``allow_library_mismatch``), and whatever :func:`checkpoints.restore` refuses (vocabulary,
+    shapes, NaN, digest)."""
     meta = checkpoints.read_meta(path)
+    why = None if allow_library_mismatch else library_mismatch(path, meta)
+    if why:
+        raise ValueError(why)
     name, num_controls, seeds = meta.get("method"), meta.get("num_controls", 4), meta.get("seeds", [0])
     num_tendons = meta.get("num_tendons", 4)
     if name not in METHODS:

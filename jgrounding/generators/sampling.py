@@ -236,13 +236,14 @@ def as_key(key):
 
 
 @functools.lru_cache(maxsize=4)
-def model(checkpoint: str | Path | None = None) -> Model:
+def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = False) -> Model:
     """The :class:`Model` of a checkpoint directory (default: the shipped RF), restored once per process.
 
     Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
     vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.generators.methods.restore`), and one whose
     model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
-    An ablation checkpoint (several seeds) samples with its first seed.
+    An ablation checkpoint (several seeds) samples with its first seed. A checkpoint trained on another
+    library version is refused unless ``allow_library_mismatch`` (:func:`methods.library_mismatch`).
     """
     from jgrounding import semantics
 
@@ -250,7 +251,7 @@ def model(checkpoint: str | Path | None = None) -> Model:
         raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint).__name__}")
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
     check_library(path)
-    trained = methods.restore(path)
+    trained = methods.restore(path, allow_library_mismatch=allow_library_mismatch)
     loaded = Model(trained, semantics.intent_embeddings(), name=str(path), covered=trained_tuples(path))
     m, z = min(loaded.covered) if loaded.covered else (0, 0)
     try:  # the self-test compiles the executable the first default ``sample`` call reuses
@@ -264,9 +265,9 @@ def model(checkpoint: str | Path | None = None) -> Model:
     return loaded
 
 
-def load(checkpoint: str | Path | None = None):
+def load(checkpoint: str | Path | None = None, allow_library_mismatch: bool = False):
     """(Trained, intent embeddings ``(16, 384)``) of :func:`model` (cached; same refusals)."""
-    loaded = model(checkpoint)
+    loaded = model(checkpoint, allow_library_mismatch)
     return loaded.trained, loaded.intent_emb
 
 
@@ -274,7 +275,8 @@ load.cache_clear = model.cache_clear  # forgets the loaded models (a test's "new
 
 
 def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None, steps: int = 50,
-           checkpoint: str | Path | None = None, current=safety.REST, screen: bool = False) -> np.ndarray:
+           checkpoint: str | Path | None = None, current=safety.REST, screen: bool = False,
+           allow_library_mismatch: bool = False) -> np.ndarray:
     """Sample tendon actuation for (intent, intensity) tuples (names or indices).
 
     Args:
@@ -290,6 +292,7 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
         responses never jump; None returns the model's own first step (what evaluation compares).
       screen: simulate candidates on the trunk and return only feasible ones (:func:`screened`, which also
         reports how many were rejected); raises :class:`ScreeningError` if too few pass within its budget.
+      allow_library_mismatch: use a checkpoint trained on another library version (refused otherwise).
     Returns:
       float32 actuation inside [0, 1]: ``(150, N_u)`` for one tuple and ``num_samples == 1``,
       ``(K, 150, N_u)`` for one tuple, ``(N, K, 150, N_u)`` for sequences; N_u = 4 for the shipped
@@ -302,8 +305,8 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
             raise ValueError(f"screen must be True or False, got {screen!r}")
         return screened(key, intent, intensity, num_samples, sampler=sampler, steps=steps, checkpoint=checkpoint,
                         current=current).u
-    return model(checkpoint).sample(key, intent, intensity, num_samples, sampler=sampler, steps=steps,
-                                    current=current)
+    return model(checkpoint, allow_library_mismatch).sample(key, intent, intensity, num_samples, sampler=sampler,
+                                                             steps=steps, current=current)
 
 
 class ScreeningError(ValueError):

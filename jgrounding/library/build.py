@@ -313,3 +313,20 @@ def bracket_violations(b: dict, tau: float = 0.35) -> list[str]:
     if b["tuple_mean"][tau] > b["oracle"][tau] - TUPLE_MEAN_GAP:
         bad.append(f"tuple mean {b['tuple_mean'][tau]:.3f} is not {TUPLE_MEAN_GAP} below oracle {b['oracle'][tau]:.3f}")
     return bad
+
+
+def fold(lib: Library, k: int) -> Library:
+    """The library re-split for cross-validation fold ``k``: realization ``k`` of every tuple held out,
+    the other realizations trained on (``k`` in 0..realizations-1; fold of the shipped split: none)."""
+    both = {f.name: (getattr(lib.train, f.name), getattr(lib.heldout, f.name)) for f in dataclasses.fields(Split)}
+    arrays = {name: (a + b if name == "texts" else np.concatenate([a, b])) for name, (a, b) in both.items()}
+    num = int(arrays["realization"].max()) + 1
+    if not 0 <= k < num:
+        raise ValueError(f"fold must be in 0..{num - 1}, got {k}")
+    held = arrays["realization"] == k
+
+    def part(mask):
+        return Split(**{name: (tuple(t for t, keep in zip(v, mask) if keep) if name == "texts" else v[mask])
+                        for name, v in arrays.items()})
+
+    return Library(train=part(~held), heldout=part(held), meta={**lib.meta, "fold": k}, path=lib.path)

@@ -133,7 +133,8 @@ def test_sample_follows_the_library():
     lib = jg.load_library()
     j = 5 * 4 + 3
     U = jg.sample(jax.random.key(0), int(lib.heldout.intent[j]), int(lib.heldout.intensity[j]), num_samples=16)
-    assert float(np.sqrt(((U - lib.heldout.u[j]) ** 2).mean())) < 0.35
+    # embracing is one-to-many (two variants, library v2): some sample reaches the held-out variant
+    assert float(np.sqrt(((U - lib.heldout.u[j]) ** 2).mean(axis=(1, 2))).min()) < 0.35
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [

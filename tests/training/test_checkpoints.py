@@ -148,3 +148,16 @@ def test_a_writer_killed_between_renames_loses_nothing(tmp_path):
     checkpoints.save(tmp_path / "ck", tree, {"step": 2})  # the next write clears the dead writer's copy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ck"]
     assert checkpoints.read_meta(tmp_path / "ck")["step"] == 2
+
+
+def test_a_checkpoint_of_another_library_version_is_refused_unless_allowed(tmp_path, shipped):
+    params, meta = shipped
+    path = _write(tmp_path / "old", params, {**meta, "library_sha256": "0" * 64, "library_version": "1"})
+    with pytest.raises(ValueError, match="(?s)library version 1.*library version .*allow_library_mismatch"):
+        methods.restore(path)
+    assert methods.restore(path, allow_library_mismatch=True).method == meta["method"]
+
+
+def test_the_shipped_checkpoint_matches_the_shipped_library():
+    meta = checkpoints.read_meta(sampling.DEFAULT_CHECKPOINT)
+    assert methods.library_mismatch(sampling.DEFAULT_CHECKPOINT, meta) is None
