@@ -34,6 +34,10 @@ def main(argv=None) -> int:
     b = library.brackets(lib, metrics.TAUS)
     print(table(b))
     print(f"held-out word 4-grams shared with same-intent training responses: {b['heldout_4gram_overlap']:.3f}")
+    mid = library.variant_midpoint(lib, metrics.TAUS)
+    if mid:
+        print(f"beside the brackets — a hedge on the {mid['tuples']} one-to-many tuples (midpoint of the two variants' "
+              "training means): " + ", ".join(f"succ@{t:.2f} {v:.3f}" for t, v in mid["success"].items()))
     bad = library.bracket_violations(b, metrics.TAU_RMS)
     print(f"brackets at tau = {metrics.TAU_RMS}: " + ("all within the SPEC §3 ranges" if not bad else "; ".join(bad)))
     return 0 if not bad else 1

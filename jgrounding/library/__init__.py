@@ -5,5 +5,6 @@ lab's own recordings (``python -m jgrounding.library import DIR``)."""
 from jgrounding.library.build import (  # noqa: F401  (re-exported: the library's public surface)
     ASSETS, BRACKET_RANGES, DEFAULT_PATH, FORMAT_VERSION, LIBRARY_VERSION, REGENERATE, TUPLE_MEAN_GAP, BuildConfig,
     Library, Split, bracket_distances, bracket_violations, brackets, build, content_hash, file_hash, fold, heldout_overlap,
+    variant_midpoint,
     load_library, save, to_bytes,
 )

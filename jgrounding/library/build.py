@@ -330,3 +330,23 @@ def fold(lib: Library, k: int) -> Library:
                         for name, v in arrays.items()})
 
     return Library(train=part(~held), heldout=part(held), meta={**lib.meta, "fold": k}, path=lib.path)
+
+
+def variant_midpoint(lib, taus=(0.25, 0.30, 0.35, 0.40, 0.45)) -> dict | None:
+    """Success of a *hedge* on the one-to-many tuples: the midpoint of the means of the two variants'
+    training realizations (weighted equally), replayed against the held-out target. ``None`` when the
+    library file records no variants. Beside the brackets, not one of them: it shows how far apart the
+    variants are relative to tau (a midpoint within tau of both variants succeeds whatever the target)."""
+    arrays = np.load(lib.path)
+    if "variant" not in arrays.files:
+        return None
+    u, m, z, v, held = (arrays[k] for k in ("u", "intent", "intensity", "variant", "heldout"))
+    dist = []
+    for j in np.flatnonzero(held):
+        pool = ~held & (m == m[j]) & (z == z[j])
+        if len(np.unique(v[pool])) < 2:
+            continue
+        mid = np.mean([u[pool & (v == k)].mean(0) for k in np.unique(v[pool])], axis=0)
+        dist.append(float(np.sqrt(((mid - u[j]) ** 2).mean())))
+    dist = np.asarray(dist)
+    return {"tuples": len(dist), "success": {float(t): float(np.mean(dist <= t)) for t in taus}} if len(dist) else None

@@ -97,3 +97,9 @@ def test_rms_success_diversity():
     assert float(metrics.pairwise_diversity(same)) == 0.0
     two = np.stack([a[0], b[0]])
     assert float(metrics.pairwise_diversity(two)) == pytest.approx(0.5)
+
+
+def test_variant_midpoint_covers_every_one_to_many_tuple(lib):
+    mid = library.variant_midpoint(lib)
+    assert mid["tuples"] == 4 * int(primitives.SPLIT.sum())
+    assert all(0.0 <= v <= 1.0 for v in mid["success"].values())
