@@ -382,6 +382,8 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int)
     p.add_argument("--out")
     p.add_argument("--methods", help=f"comma-separated subset of {','.join(methods.METHODS)}")
+    p.add_argument("--engine", choices=sim.ENGINES, help="trunk engine of the physics columns (default auto)")
+    p.add_argument("--no-physics-aware", action="store_true", help="skip the physics-aware RF row")
     p.add_argument("--devices", type=int, help="devices of the mesh (0 = all; default 1 = no mesh); see docs/distributed.md")
     p.add_argument("--library", help="library .npz to run Table II on (default: the shipped one), e.g. imported "
                    "with python -m jgrounding.library import; results go to results/<its name> unless --out")
@@ -400,6 +402,10 @@ def main(argv=None) -> int:
         for m in chosen:
             methods.spec(m)
         cfg = dataclasses.replace(cfg, methods=chosen)
+    if args.engine:
+        cfg = dataclasses.replace(cfg, engine=args.engine)
+    if args.no_physics_aware:
+        cfg = dataclasses.replace(cfg, physics_aware=False)
     if args.devices is not None:
         distributed.initialize()
         cfg = dataclasses.replace(cfg, devices=args.devices)

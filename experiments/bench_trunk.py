@@ -183,11 +183,16 @@ def screening_latency(say, reps: int = 20) -> None:
 
 
 def ablation_rollouts(k_div: int = 30, seeds: int = 5, deterministic: int = 3, generative: int = 3,
-                      candidates: int = 2 * 64 * 16, library: int = 256, references: int = 3 * 64) -> int:
+                      candidates: int | None = None, library: int = 256, references: int = 3 * 64) -> int:
     """Distinct trajectories ``make ablation`` simulates with its defaults: every sample of the generative
     rows (DDPM, RF, physics-aware RF), one per tuple for the deterministic CNNs (their K_div copies are
     identical and simulated once), the physics-aware fine-tuning's screened candidates, the library once
     (held-out references and the shape tolerance) and the reference rows."""
+    if candidates is None:
+        from jgrounding.training.physics import PhysicsConfig
+
+        cfg = PhysicsConfig()
+        candidates = cfg.rounds * 64 * cfg.candidates
     return seeds * (64 * (deterministic + generative * k_div) + candidates) + library + references
 
 
@@ -203,7 +208,7 @@ def ablation_throughput(pool, say, k_div: int = 30) -> None:
     say(f"Physics columns of the ablation: one batch = K_div x 64 = {batch:,} trajectories per method and seed "
         f"(engine \"auto\" picks {sim.resolve_engine('auto')} on this machine).")
     say("")
-    say("| engine | trajectories/s | s per batch of 1,920 |")
+    say(f"| engine | trajectories/s | s per batch of {batch:,} |")
     say("|---|---|---|")
     rate = {}
     for engine in ("native", "mjx"):
