@@ -260,7 +260,7 @@ def markdown(res: dict) -> str:
                   f"{100 * tol['wrong_intent_success']:.0f}% of different-intent pairs inside); Shape div.: mean pairwise "
                   "shape RMS of a tuple's K_div samples; Feasible: stable, contact force and tip speed near the user within "
                   "bounds (MuJoCo), over all samples. The physics-aware row fine-tunes the RF on its own screened samples "
-                  "(jgrounding/physics_training.py).")
+                  "(jgrounding/training/physics.py).")
     return "\n".join(lines) + "\n"
 
 
@@ -289,6 +289,16 @@ def findings(res: dict) -> list[str]:
             out.append(f"RF vs {methods.DISPLAY[m]} success: {fmt(rf['success'])} vs {fmt(r[m]['success'])} "
                        f"(RF {_cmp(rf['success'], r[m]['success'])}); coverage RMS {fmt(rf['coverage'])} vs "
                        f"{fmt(r[m]['coverage'])} (lower is better).")
+    phys = r.get(PHYSICS_AWARE)
+    if rf and phys:
+        goal = "met" if phys["feasible"][0] >= 0.995 else "not met"
+        out.append(f"Physics-aware RF vs RF (every sample simulated): feasible {fmt4(phys['feasible'])} vs "
+                   f"{fmt4(rf['feasible'])} (goal >= 0.995: {goal}); success (all samples) "
+                   f"{fmt(phys['success_all_samples'])} vs {fmt(rf['success_all_samples'])} "
+                   f"({_cmp(phys['success_all_samples'], rf['success_all_samples'])}); diversity {fmt(phys['diversity'])} "
+                   f"vs {fmt(rf['diversity'])} ({_cmp(phys['diversity'], rf['diversity'])}); shape success "
+                   f"{fmt(phys['shape_success'])} vs {fmt(rf['shape_success'])}; shape diversity "
+                   f"{fmt(phys['shape_diversity_m'])} vs {fmt(rf['shape_diversity_m'])} m.")
     if cnn:
         out.append("CNN diversity: " + ", ".join(f"{methods.DISPLAY[m]} {r[m]['diversity'][0]:.4f}" for m in cnn)
                    + (" — all 0: deterministic, as in the paper." if all(r[m]["diversity"][0] < 1e-6 for m in cnn)
