@@ -55,7 +55,7 @@ def _bad(u: np.ndarray) -> int:
     return int((~ok).sum())
 
 
-def fuzz(seed: int, trajectories: int, max_per_call: int = 4096) -> dict:
+def fuzz(seed: int, trajectories: int, max_per_call: int = 4096, progress: bool = False) -> dict:
     """Random public calls until ``trajectories`` came back; returns the counts (``bad`` must be 0)."""
     rng = np.random.default_rng(seed)
     counts = {"calls": 0, "trajectories": 0, "bad": 0, "configs": set()}
@@ -78,6 +78,8 @@ def fuzz(seed: int, trajectories: int, max_per_call: int = 4096) -> dict:
         counts["calls"] += 1
         counts["trajectories"] += n * k
         counts["configs"].add((sampler, steps))
+        if progress and counts["trajectories"] // 100_000 > (counts["trajectories"] - n * k) // 100_000:
+            print(f"  {counts['trajectories']:,} trajectories, {counts['bad']} bad", flush=True)
     return counts
 
 
@@ -87,7 +89,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    c = fuzz(args.seed, args.trajectories)
+    c = fuzz(args.seed, args.trajectories, progress=True)
     dt = time.perf_counter() - t0
     text = (f"Fuzzed jg.sample: {c['calls']:,} random calls, {c['trajectories']:,} trajectories "
             f"({len(c['configs'])} sampler settings, seed {args.seed}) in {dt:.0f} s: {c['bad']} out of bounds, "
