@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import safety, training
+from jgrounding import io, safety, training
 
 from jgrounding.training import checkpoints
 
@@ -233,16 +233,19 @@ def reflow(teacher: Trained, library, config: training.TrainConfig = training.Tr
                    jnp.concatenate(losses), teacher.num_tendons)
 
 
+# = jgrounding.library.DEFAULT_PATH, named here so that loading a checkpoint does not import the library
+# package (and the physics it screens with): jg.sample's first call stays short.
+DEFAULT_LIBRARY = Path(__file__).resolve().parents[2] / "assets" / "library.npz"
+
+
 def library_mismatch(path, meta: dict) -> str | None:
     """Why checkpoint ``path`` (its ``meta``) does not belong to the library it would be used with, or ``None``.
 
     The library is the one it recorded (``library_path``, when that file exists) or else the shipped
     ``assets/library.npz``; a checkpoint that recorded no library sha256 is not judged."""
-    from jgrounding import library
-
     digest = meta.get("library_sha256")
-    lib_path = Path(meta.get("library_path") or library.DEFAULT_PATH)
-    if not digest or not lib_path.is_file() or library.file_hash(lib_path) == digest:
+    lib_path = Path(meta.get("library_path") or DEFAULT_LIBRARY)
+    if not digest or not lib_path.is_file() or io.sha256_file(lib_path) == digest:
         return None
     try:
         current = json.loads(lib_path.with_suffix(".json").read_text()).get("library_version", "1 (unversioned)")
@@ -250,7 +253,7 @@ def library_mismatch(path, meta: dict) -> str | None:
         current = "unknown"
     return (f"checkpoint {path} was trained on library version {meta.get('library_version', '1 (unversioned)')} "
             f"(sha256 {digest[:12]}...), but {lib_path} is library version {current} (sha256 "
-            f"{library.file_hash(lib_path)[:12]}...); retrain it (python -m experiments.train --out {path}) or pass "
+            f"{io.sha256_file(lib_path)[:12]}...); retrain it (python -m experiments.train --out {path}) or pass "
             "allow_library_mismatch=True (--allow-library-mismatch) to use it anyway")
 
 

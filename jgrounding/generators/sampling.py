@@ -203,11 +203,11 @@ def check_library(path: Path) -> None:
     lib_path, digest = meta.get("library_path"), meta.get("library_sha256")
     if not (lib_path and digest and Path(lib_path).is_file()):
         return
-    from jgrounding import library  # only here: it imports the physics (MuJoCo) for screening
+    from jgrounding import io
 
-    if library.file_hash(lib_path) != digest:
+    if io.sha256_file(lib_path) != digest:
         raise ValueError(f"checkpoint {path} was trained on library {lib_path} with sha256 {digest[:12]}..., but that "
-                         f"file now has sha256 {library.file_hash(lib_path)[:12]}...; retrain on the current library "
+                         f"file now has sha256 {io.sha256_file(lib_path)[:12]}...; retrain on the current library "
                          "(python -m experiments.train --library ...) or restore the library it was trained on")
 
 

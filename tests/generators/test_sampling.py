@@ -114,3 +114,10 @@ def test_screening_that_cannot_pass_raises_a_clear_error(monkeypatch):
     monkeypatch.setattr(physics, "margins", lambda u, engine="auto": -np.ones(len(u)))  # nothing is feasible
     with pytest.raises(sampling.ScreeningError, match="budget of 8 candidates"):
         sampling.screened(jax.random.key(0), "nodding", "emphatic", num_samples=2, budget=8)
+
+
+def test_loading_a_checkpoint_names_the_shipped_library_without_importing_it():
+    from jgrounding import library
+    from jgrounding.generators import methods
+
+    assert methods.DEFAULT_LIBRARY == library.DEFAULT_PATH
