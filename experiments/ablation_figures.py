@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import sim
+from jgrounding.sim import model as sim_model
 
 from jgrounding.generators import methods
 
@@ -56,7 +57,7 @@ def fig4(samples: dict[str, np.ndarray], lib, path: Path) -> str:
             for i, m in enumerate(names):
                 _posture(ax, final[i + 1], plane, color=METHOD_COLORS[i], lw=1.2, label=methods.DISPLAY[m])
             if plane == (0, 2):
-                ax.axvspan(sim.tm.USER_TORSO_X - sim.tm.USER_TORSO_RADIUS, 0.7, color="tab:orange", alpha=0.12)
+                ax.axvspan(sim_model.USER_TORSO_X - sim_model.USER_TORSO_RADIUS, 0.7, color="tab:orange", alpha=0.12)
                 ax.text(0.30, 0.45, "user", fontsize=7, color="tab:orange")
             ax.set_xlim(-0.55, 0.6)
             ax.set_ylim(0.35, 1.15)
