@@ -155,9 +155,9 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             rf_trained = trained if method == "tuple_spline_rf" else rf_trained
         train_s = time.perf_counter() - t0
         checkpoints.save(Path(cfg.runs) / method, trained.params,
-                         {"method": trained.method, "variant": method, "seeds": list(cfg.seeds), "num_controls": 4,
+                         {**methods.checkpoint_meta(trained), "variant": method,
                           "config": dataclasses.asdict(train_cfg), "library_sha256": library.file_hash(lib.path),
-                          "num_tendons": num_tendons, "step": cfg.steps})
+                          "step": cfg.steps})
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
         u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
                                                       jax.random.fold_in(key, len(rows)), mesh)

@@ -22,12 +22,9 @@ import jax
 import jax.numpy as jnp
 
 from jgrounding import library, load_library, semantics, training
-
-from jgrounding.training import checkpoints
-
-from jgrounding.training import distributed
-
+from jgrounding.config import ModelConfig, SampleConfig
 from jgrounding.generators import methods
+from jgrounding.training import checkpoints, distributed
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 
@@ -41,6 +38,15 @@ def main(argv=None) -> int:
     p.add_argument("--num-controls", type=int, default=4)
     p.add_argument("--devices", type=int, default=1, help="split the seeds over this many devices (0 = all)")
     p.add_argument("--library", help="library .npz to train on (default: the shipped assets/library.npz)")
+    opts = p.add_argument_group("generator options (issue #16; off by default = the paper's Table I)")
+    opts.add_argument("--ema-decay", type=float, default=0.0, help="keep and ship an EMA of the parameters (0 = off)")
+    opts.add_argument("--time-sampler", default="uniform", help="flow-time distribution: uniform, logit_normal, beta")
+    opts.add_argument("--condition-dropout", type=float, default=0.0, help="train the null condition (for guidance)")
+    opts.add_argument("--guidance", type=float, default=0.0, help="guidance weight w recorded as the checkpoint's "
+                      "sampling default")
+    opts.add_argument("--reflow-from", help="train a 2-rectified flow from this RF checkpoint's own samples "
+                      "(seeds of --seeds; not resumable)")
+    opts.add_argument("--reflow-pairs", type=int, default=64, help="teacher pairs per training example")
     args = p.parse_args(argv)
     try:
         seeds = tuple(int(s) for s in args.seeds.split(","))
@@ -49,9 +55,12 @@ def main(argv=None) -> int:
     if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         p.error(f"--seeds must be distinct non-negative integers separated by commas, e.g. 0,1,2; got {args.seeds!r}")
     try:
-        config = training.TrainConfig(steps=args.steps, chunk=args.chunk)
+        config = training.TrainConfig(steps=args.steps, chunk=args.chunk, ema_decay=args.ema_decay,
+                                      time_sampler=args.time_sampler, condition_dropout=args.condition_dropout)
+        sample_cfg = SampleConfig(guidance=args.guidance)
+        methods.check_options(args.method, config)
     except ValueError as e:
-        p.error(str(e).replace("TrainConfig.", "--"))
+        p.error(str(e).replace("TrainConfig.", "--").replace("SampleConfig.", "--").replace("_", "-"))
     distributed.initialize()  # multi-host only; a no-op on one machine
     if args.devices < 0 or args.devices > jax.device_count():
         p.error(f"--devices must be in 0..{jax.device_count()} (0 = all), got {args.devices}")
@@ -68,12 +77,15 @@ def main(argv=None) -> int:
         text_emb = semantics.embed(texts).reshape(len(lib.train), -1, 384)
     tuples = sorted({(int(m), int(z)) for m, z in zip(lib.train.intent, lib.train.intensity)})
     meta = {"method": args.method, "seeds": list(seeds), "num_controls": args.num_controls,
-            "config": dataclasses.asdict(config), "library_sha256": library.file_hash(lib.path),
+            "model": dataclasses.asdict(ModelConfig()), "config": dataclasses.asdict(config),
+            "sample": dataclasses.asdict(sample_cfg), "library_sha256": library.file_hash(lib.path),
             "library_version": lib.meta.get("library_version", "1 (unversioned)")}
     if args.library:  # the shipped library's checkpoints keep their old metadata
         meta.update(library_path=str(Path(lib.path).resolve()), num_tendons=num_tendons,
                     tuples=[f"{INTENTS[m]}/{INTENSITIES[z]}" for m, z in tuples])
     run_dir = args.out + ".run"
+    if args.reflow_from:
+        return reflow(args, lib, config, meta, seeds, writer)
 
     def template():
         graphdef, params = methods.init(args.method, seeds, args.num_controls, num_tendons)
@@ -109,11 +121,28 @@ def main(argv=None) -> int:
                             initial_states=initial, on_chunk=on_chunk, mesh=mesh)
     final = jax.tree.map(lambda x: x[:1], trained.params) if len(seeds) > 1 else trained.params
     if writer:
-        checkpoints.save(args.out, final, {**meta, "seeds": [seeds[0]], "step": args.steps})
+        checkpoints.save(args.out, final, {**meta, **methods.checkpoint_meta(trained), "seeds": [seeds[0]],
+                                           "step": args.steps})
         import shutil
 
         shutil.rmtree(run_dir, ignore_errors=True)  # the run finished: its resume state is no longer needed
     print(f"saved {args.out} (seed {seeds[0]}); final loss {float(trained.losses[0, -100:].mean()):.4f}")
+    return 0
+
+
+def reflow(args, lib, config, meta, seeds, writer) -> int:
+    """2-rectified flow of the checkpoint ``--reflow-from`` (its guidance w is distilled in: the result
+    samples with w = 0)."""
+    teacher = methods.restore(args.reflow_from, "tuple_spline_rf")
+    teacher_meta = checkpoints.read_meta(args.reflow_from)
+    w = float(teacher_meta.get("sample", {}).get("guidance", 0.0))
+    trained = methods.reflow(teacher, lib, config, pairs_per_example=args.reflow_pairs, teacher_guidance=w)
+    if writer:
+        checkpoints.save(args.out, trained.params, {**meta, **methods.checkpoint_meta(trained), "step": args.steps,
+                                                    "reflow_of": str(args.reflow_from), "teacher_guidance": w,
+                                                    "reflow_pairs": args.reflow_pairs})
+    print(f"saved {args.out} (2-rectified flow of {args.reflow_from}, seeds {list(trained.seeds)}); "
+          f"final loss {float(trained.losses[0, -100:].mean()):.4f}")
     return 0
 
 

@@ -9,6 +9,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from flax import nnx
+
+from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
+from jgrounding.generators.networks import VelocityMLP
 
 SAMPLERS = ("euler", "midpoint", "rk4")
 DDPM_SAMPLERS = ("ancestral", "ddim")
@@ -160,3 +164,71 @@ def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "a
         return jnp.sqrt(prev) * x0 + jnp.sqrt(1 - prev) * eps
 
     return jax.lax.fori_loop(0, n, body, x_T)
+
+
+class _Flow:
+    """Shared by the flow and diffusion generators: the velocity / noise MLP, condition dropout in
+    training and classifier-free guidance in sampling. Subclasses give ``loss`` and ``_integrate``."""
+
+    sequence = False
+
+    def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool,
+             config: ModelConfig) -> nnx.Module:
+        dim = num_tendons * representation.length(num_controls)
+        return VelocityMLP(dim, use_intensity, config, rngs=nnx.Rngs(key))
+
+    @staticmethod
+    def _network(model, batch: dict, key, config: TrainConfig):
+        """(key left for the loss, ``net(x, t)``); with condition dropout the null condition is trained too."""
+        keep = None
+        if config.condition_dropout:
+            key, k_drop = jax.random.split(key)
+            keep = jax.random.bernoulli(k_drop, 1.0 - config.condition_dropout, batch["cond"].shape[:1])
+            keep = keep.astype(jnp.float32)
+        return key, lambda x, t: model(x, t, batch["cond"], batch["intensity"], keep)
+
+    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig):
+        """Integrate from noise ``eps = N(key) (B, D)``; guidance w: v = v_c + w (v_c - v_null), the
+        conditional and null rows through the network as one batch."""
+        b = cond.shape[0]
+        eps = jax.random.normal(key, (b, dim))
+        # What does not change across flow steps is computed once, before the sampler's loop: the
+        # condition's share of the first layer, and the time embedding's share for every step.
+        ctx = model.context(cond, intensity)
+        w = config.guidance
+        if w:
+            both = jnp.concatenate([ctx, model.null_context(b)])
+
+            def net(x, time_ctx):
+                v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
+                return v[:b] + w * (v[:b] - v[b:])
+        else:
+            net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)  # noqa: E731
+        return self._integrate(net, eps, key, config, model.time_context)
+
+
+class RectifiedFlow(_Flow):
+    """Sec. III-C: the paper's generator (Eqs. rf_loss, rf_inference)."""
+
+    def loss(self, model, batch, key, config: TrainConfig):
+        key, net = self._network(model, batch, key, config)
+        return rf_loss(net, batch["target"], key, time_sampler=config.time_sampler, noise=batch.get("noise"))
+
+    @staticmethod
+    def _integrate(net, eps, key, config: SampleConfig, embed_time):
+        del key  # the ODE is deterministic given eps
+        return rf_sample(net, eps, steps=config.steps, sampler=config.sampler, embed_time=embed_time)
+
+
+class DDPM(_Flow):
+    """The diffusion baseline of Table II (epsilon prediction, cosine schedule)."""
+
+    def loss(self, model, batch, key, config: TrainConfig):
+        key, net = self._network(model, batch, key, config)
+        return ddpm_loss(net, batch["target"], key)
+
+    @staticmethod
+    def _integrate(net, eps, key, config: SampleConfig, embed_time):
+        sampler = "ancestral" if config.sampler == "euler" else config.sampler  # the default of each generator
+        return ddpm_sample(net, eps, jax.random.fold_in(key, 1), sampler=sampler, sample_steps=config.steps,
+                           embed_time=embed_time)

@@ -20,52 +20,117 @@ import numpy as np
 from flax import nnx
 
 from jgrounding import io, safety, training
-
-from jgrounding.training import checkpoints
-
-from jgrounding.training import distributed
-
-from jgrounding.generators import flows
-
 from jgrounding.actuation import splines
-from jgrounding.generators.networks import CNNRegressor, VelocityMLP
+from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
+from jgrounding.generators.base import Generator
+from jgrounding.generators.flows import DDPM, RectifiedFlow
+from jgrounding.generators.networks import CNNRegressor
+from jgrounding.training import checkpoints, distributed
 
-METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm", "tuple_spline_rf")
-DISPLAY = {
-    "raw_dense_cnn": "Raw + Dense + CNN",
-    "tuple_dense_cnn": "Tuple + Dense + CNN",
-    "tuple_spline_cnn": "Tuple + Spline + CNN",
-    "tuple_spline_ddpm": "Tuple + Spline + DDPM",
-    "tuple_spline_rf": "Tuple + Spline + RF",
-}
 T = splines.NUM_STEPS
+
+
+class Regressor:
+    """The deterministic 1-D CNN regressors of Table II: squared error to the demonstration."""
+
+    sequence = True
+
+    def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool,
+             config: ModelConfig):
+        return CNNRegressor(representation.length(num_controls), use_intensity, representation.cnn_channels(config),
+                            num_tendons, config, rngs=nnx.Rngs(key))
+
+    def loss(self, model, batch, key, config: TrainConfig):
+        del key, config  # deterministic
+        return jnp.mean((model(batch["cond"], batch["intensity"]) - batch["target"]) ** 2)
+
+    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig):
+        del key, dim, config
+        return model(cond, intensity)
+
+
+@dataclasses.dataclass(frozen=True)
+class Spline:
+    """Actuation as N_u x P Catmull-Rom controls, u = R(c) (Eq. ci)."""
+
+    name: str = "spline"
+
+    def length(self, num_controls: int) -> int:
+        return num_controls
+
+    def cnn_channels(self, config: ModelConfig) -> int:
+        return config.cnn_channels
+
+    def target(self, split, num_controls: int, sequence: bool) -> np.ndarray:
+        c = split.controls if num_controls == split.controls.shape[-1] else \
+            np.asarray(splines.fit(split.u, num_controls=num_controls))  # (N, N_u, P)
+        return np.swapaxes(c, -1, -2) if sequence else c.reshape(len(split), -1)
+
+    def actuation(self, y, sequence: bool, num_tendons: int, num_controls: int):
+        c = jnp.swapaxes(y, -1, -2) if sequence else y.reshape(y.shape[0], num_tendons, num_controls)
+        return splines.reconstruct(c)
+
+
+@dataclasses.dataclass(frozen=True)
+class Dense:
+    """Actuation as the T x N_u trajectory itself."""
+
+    name: str = "dense"
+
+    def length(self, num_controls: int) -> int:
+        del num_controls
+        return T
+
+    def cnn_channels(self, config: ModelConfig) -> int:
+        return config.dense_cnn_channels
+
+    def target(self, split, num_controls: int, sequence: bool) -> np.ndarray:
+        del num_controls
+        return split.u if sequence else split.u.reshape(len(split), -1)
+
+    def actuation(self, y, sequence: bool, num_tendons: int, num_controls: int):
+        del num_controls
+        return y if sequence else y.reshape(y.shape[0], T, num_tendons)
 
 
 @dataclasses.dataclass(frozen=True)
 class MethodSpec:
-    condition: str  # "tuple" | "raw"
-    representation: str  # "spline" | "dense"
-    generator: str  # "cnn" | "ddpm" | "rf"
+    """A Table II method: *Semantic Condition + Actuation Representation + Generator*."""
+
+    name: str
+    display: str
+    condition: str  # "tuple": (E_m(m), E_z(z)); "raw": the response text's embedding
+    representation: Spline | Dense
+    generator: Generator
+
+    @property
+    def use_intensity(self) -> bool:
+        return self.condition == "tuple"
+
+
+REGISTRY = {s.name: s for s in (
+    MethodSpec("raw_dense_cnn", "Raw + Dense + CNN", "raw", Dense(), Regressor()),
+    MethodSpec("tuple_dense_cnn", "Tuple + Dense + CNN", "tuple", Dense(), Regressor()),
+    MethodSpec("tuple_spline_cnn", "Tuple + Spline + CNN", "tuple", Spline(), Regressor()),
+    MethodSpec("tuple_spline_ddpm", "Tuple + Spline + DDPM", "tuple", Spline(), DDPM()),
+    MethodSpec("tuple_spline_rf", "Tuple + Spline + RF", "tuple", Spline(), RectifiedFlow()),
+)}
+METHODS = tuple(REGISTRY)
+DISPLAY = {name: s.display for name, s in REGISTRY.items()}
 
 
 def spec(method: str) -> MethodSpec:
-    if method not in METHODS:
+    """The registered :class:`MethodSpec`; ``ValueError`` listing the valid names."""
+    if method not in REGISTRY:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
-    c, r, g = method.split("_")
-    return MethodSpec(c, r, g)
+    return REGISTRY[method]
 
 
-def build_model(method: str, num_controls: int, key, num_tendons: int = 4) -> nnx.Module:
+def build_model(method: str, num_controls: int, key, num_tendons: int = 4,
+                model: ModelConfig = ModelConfig()) -> nnx.Module:
     """The network of ``method`` for ``num_tendons`` (N_u, from the library) and P = ``num_controls``."""
     s = spec(method)
-    rngs = nnx.Rngs(key)
-    tuple_cond = s.condition == "tuple"
-    if s.generator == "cnn":
-        if s.representation == "dense":  # 32 channels over 150 steps: same budget order as the MLPs
-            return CNNRegressor(T, tuple_cond, channels=32, num_tendons=num_tendons, rngs=rngs)
-        return CNNRegressor(num_controls, tuple_cond, num_tendons=num_tendons, rngs=rngs)
-    dim = num_tendons * (num_controls if s.representation == "spline" else T)
-    return VelocityMLP(dim, tuple_cond, rngs=rngs)
+    return s.generator.init(key, s.representation, num_controls, num_tendons, s.use_intensity, model)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,6 +144,7 @@ class Trained:
     num_controls: int
     losses: Any = None
     num_tendons: int = 4  # N_u of the library it was trained on
+    model: ModelConfig = ModelConfig()  # network sizes (recorded in its checkpoints)
 
 
 def _encode(y):  # controls / actuation in ~[0, 1] -> [-1, 1]
@@ -90,14 +156,9 @@ def _decode(x):
 
 
 def training_data(method: str, split, intent_emb: np.ndarray, text_emb: np.ndarray | None, num_controls: int):
-    """Arrays the loss reads: condition embedding, intensity, flat normalized target."""
+    """Arrays the loss reads: condition embedding, intensity, normalized target (flat or sequence)."""
     s = spec(method)
-    if s.representation == "spline":
-        target = np.asarray(splines.fit(split.u, num_controls=num_controls)) if num_controls != split.controls.shape[-1] \
-            else split.controls
-        target = target.reshape(len(split), -1) if s.generator != "cnn" else np.swapaxes(target, -1, -2)
-    else:
-        target = split.u.reshape(len(split), -1) if s.generator != "cnn" else split.u
+    target = s.representation.target(split, num_controls, s.generator.sequence)
     if s.condition == "raw":
         if text_emb is None:
             raise ValueError("raw conditioning needs text embeddings of the records' response texts")
@@ -112,77 +173,68 @@ def training_data(method: str, split, intent_emb: np.ndarray, text_emb: np.ndarr
             "target": _encode(jnp.asarray(target, jnp.float32))}
 
 
-def _loss_fn(method: str, graphdef, data, config: training.TrainConfig = training.TrainConfig()):
-    s = spec(method)
+def loss_fn(method: str, graphdef, data, config: TrainConfig = TrainConfig()):
+    """``loss(params, idx (B,), key) -> scalar``: the generator's loss on the examples ``idx`` of ``data``."""
+    generator = spec(method).generator
 
     def loss(params, idx, key):
-        model = nnx.merge(graphdef, params)
-        cond, inten, y = data["cond"][idx], data["intensity"][idx], data["target"][idx]
-        if s.generator == "cnn":
-            return jnp.mean((model(cond, inten) - y) ** 2)
-        keep = None
-        if config.condition_dropout:  # classifier-free guidance: learn the null condition too
-            key, k_drop = jax.random.split(key)
-            keep = jax.random.bernoulli(k_drop, 1.0 - config.condition_dropout, idx.shape).astype(jnp.float32)
-        net = lambda x, t: model(x, t, cond, inten, keep)  # noqa: E731
-        if s.generator == "rf":
-            noise = data["noise"][idx] if "noise" in data else None  # reflow: coupled (noise, sample) pairs
-            return flows.rf_loss(net, y, key, time_sampler=config.time_sampler, noise=noise)
-        return flows.ddpm_loss(net, y, key)
+        batch = {k: v[idx] for k, v in data.items()}
+        return generator.loss(nnx.merge(graphdef, params), batch, key, config)
 
     return loss
 
 
-def init(method: str, seeds, num_controls: int = 4, num_tendons: int = 4):
+def init(method: str, seeds, num_controls: int = 4, num_tendons: int = 4, model: ModelConfig = ModelConfig()):
     """(graphdef, params stacked over seeds)."""
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
-    graphdef, _ = nnx.split(build_model(method, num_controls, keys[0], num_tendons))
-    params = jax.vmap(lambda k: nnx.split(build_model(method, num_controls, k, num_tendons))[1])(keys)
+    graphdef, _ = nnx.split(build_model(method, num_controls, keys[0], num_tendons, model))
+    params = jax.vmap(lambda k: nnx.split(build_model(method, num_controls, k, num_tendons, model))[1])(keys)
     return graphdef, params
 
 
-def abstract(method: str, seeds, num_controls: int = 4, num_tendons: int = 4):
+def abstract(method: str, seeds, num_controls: int = 4, num_tendons: int = 4, model: ModelConfig = ModelConfig()):
     """(graphdef, params as ``jax.ShapeDtypeStruct`` stacked over seeds): :func:`init`'s structure and
     shapes, traced but never computed (a checkpoint restore needs nothing more; no start-up compiles)."""
-    model = nnx.eval_shape(lambda: build_model(method, num_controls, jax.random.key(0), num_tendons))
-    graphdef, state = nnx.split(model)
+    net = nnx.eval_shape(lambda: build_model(method, num_controls, jax.random.key(0), num_tendons, model))
+    graphdef, state = nnx.split(net)
     return graphdef, jax.tree.map(lambda x: jax.ShapeDtypeStruct((len(seeds), *x.shape), x.dtype), state)
 
 
-def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: training.TrainConfig = training.TrainConfig(),
+def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: TrainConfig = TrainConfig(),
           *, intent_emb=None, text_emb=None, num_controls: int = 4, progress: bool = True,
-          initial_states=None, on_chunk=None, mesh=None) -> Trained:
+          initial_states=None, on_chunk=None, mesh=None, model: ModelConfig = ModelConfig()) -> Trained:
     """Train ``method`` on ``library.train`` for every seed at once (vmap); returns :class:`Trained`.
 
     ``mesh``: split the seeds over the devices of a :func:`jgrounding.training.distributed.make_mesh` mesh.
     """
     from jgrounding import semantics
 
+    check_options(method, config)
     intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb
     data = training_data(method, library.train, intent_emb, text_emb, num_controls)
     num_tendons = int(library.train.u.shape[-1])  # N_u from the data
-    graphdef, params = init(method, seeds, num_controls, num_tendons)
-    _check_options(method, config)
-    step = training.make_step(_loss_fn(method, graphdef, data, config), int(data["target"].shape[0]), config)
+    graphdef, params = init(method, seeds, num_controls, num_tendons, model)
+    step = training.make_step(loss_fn(method, graphdef, data, config), int(data["target"].shape[0]), config)
     if initial_states is None:
         keys = jnp.stack([jax.random.fold_in(jax.random.key(int(s)), 1) for s in seeds])
         initial_states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
     states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
                                     on_chunk=on_chunk, mesh=mesh)
     return Trained(method, graphdef, training.eval_params(states), tuple(int(s) for s in seeds), num_controls,
-                   losses, num_tendons)
+                   losses, num_tendons, model)
 
 
-def _check_options(method: str, config: training.TrainConfig) -> None:
-    s = spec(method)
-    if config.condition_dropout and s.generator == "cnn":
+def check_options(method: str, config: TrainConfig) -> None:
+    """``ValueError`` for a generator option that does not apply to ``method``'s generator."""
+    generator = spec(method).generator
+    if config.condition_dropout and not isinstance(generator, (RectifiedFlow, DDPM)):
         raise ValueError(f"condition_dropout (classifier-free guidance) needs a flow or diffusion generator; "
                          f"{method} is a deterministic regressor")
-    if config.time_sampler != "uniform" and s.generator != "rf":
+    if config.time_sampler != "uniform" and not isinstance(generator, RectifiedFlow):
         raise ValueError(f"time_sampler {config.time_sampler!r} applies to rectified flow; {method} is not RF")
 
 
-def reflow(teacher: Trained, library, config: training.TrainConfig = training.TrainConfig(), *, intent_emb=None,
+def reflow(teacher: Trained, library, config: TrainConfig = TrainConfig(), *, intent_emb=None,
            pairs_per_example: int = 64, teacher_steps: int = 50, teacher_guidance: float = 0.0,
            progress: bool = True) -> Trained:
     """2-rectified flow (Liu et al., "Flow straight and fast"): retrain each seed of an RF ``teacher`` on
@@ -201,21 +253,21 @@ def reflow(teacher: Trained, library, config: training.TrainConfig = training.Tr
     """
     from jgrounding import semantics
 
-    if spec(teacher.method).generator != "rf":
+    generator = spec(teacher.method).generator
+    if not isinstance(generator, RectifiedFlow):
         raise ValueError(f"reflow needs a rectified-flow teacher; {teacher.method} is not RF")
-    _check_options(teacher.method, config)
+    check_options(teacher.method, config)
     intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb
     base = training_data(teacher.method, library.train, intent_emb, None, teacher.num_controls)
     cond = jnp.repeat(base["cond"], pairs_per_example, axis=0)
     inten = jnp.repeat(base["intensity"], pairs_per_example, axis=0)
     dim = base["target"].shape[-1]
+    ode = SampleConfig("euler", teacher_steps, teacher_guidance)
 
     @jax.jit
     def teacher_pairs(params, key):
-        eps = jax.random.normal(key, (cond.shape[0], dim))
-        x1 = _flow(teacher.method, nnx.merge(teacher.graphdef, params), cond, inten, eps, key, sampler="euler",
-                   steps=teacher_steps, guidance=teacher_guidance)
-        return eps, x1
+        x1 = generator.sample(nnx.merge(teacher.graphdef, params), cond, inten, key, dim, ode)
+        return jax.random.normal(key, (cond.shape[0], dim)), x1  # the eps the sampler drew from key
 
     out, losses = [], []
     for i, seed in enumerate(teacher.seeds):
@@ -223,14 +275,19 @@ def reflow(teacher: Trained, library, config: training.TrainConfig = training.Tr
         params = jax.tree.map(lambda x: x[i], teacher.params)
         eps, x1 = teacher_pairs(params, k_pairs)
         data = {"cond": cond, "intensity": inten, "target": x1, "noise": eps}
-        step = training.make_step(_loss_fn(teacher.method, teacher.graphdef, data, config), int(x1.shape[0]), config)
+        step = training.make_step(loss_fn(teacher.method, teacher.graphdef, data, config), int(x1.shape[0]), config)
         state = jax.tree.map(lambda x: x[None], training.init_state(params, k_train, config))
         state, loss = training.train(state, step, config, desc=f"reflow seed {seed}", progress=progress)
         out.append(training.eval_params(state))
         losses.append(loss)
     params = jax.tree.map(lambda *x: jnp.concatenate(x), *out)
-    return Trained(teacher.method, teacher.graphdef, params, teacher.seeds, teacher.num_controls,
-                   jnp.concatenate(losses), teacher.num_tendons)
+    return dataclasses.replace(teacher, params=params, losses=jnp.concatenate(losses))
+
+
+def checkpoint_meta(trained: Trained) -> dict:
+    """What every checkpoint of a :class:`Trained` records so that :func:`restore` rebuilds its network."""
+    return {"method": trained.method, "seeds": list(trained.seeds), "num_controls": trained.num_controls,
+            "num_tendons": trained.num_tendons, "model": dataclasses.asdict(trained.model)}
 
 
 # = jgrounding.library.DEFAULT_PATH, named here so that loading a checkpoint does not import the library
@@ -260,9 +317,13 @@ def library_mismatch(path, meta: dict) -> str | None:
 def restore(path, method: str | None = None, *, allow_library_mismatch: bool = False) -> Trained:
     """A :class:`Trained` (every seed it holds) from a checkpoint directory written by the ablation or
     ``experiments.train``; ``method`` (optional) must match. ``ValueError`` naming the directory for an
-    unknown method or P, a checkpoint trained on another library version (:func:`library_mismatch`;
-    unless ``allow_library_mismatch``), and whatever :func:`checkpoints.restore` refuses (vocabulary,
-    shapes, NaN, digest)."""
+    unknown method, P, N_u or model sizes, a checkpoint trained on another library version
+    (:func:`library_mismatch`; unless ``allow_library_mismatch``), and whatever :func:`checkpoints.restore`
+    refuses (vocabulary, shapes, NaN, digest). Checkpoints written before model sizes were recorded load
+    with Table I's sizes (what they were trained with); one whose arrays do not fit them is refused by its
+    shapes."""
+    from jgrounding.config import model_config
+
     meta = checkpoints.read_meta(path)
     why = None if allow_library_mismatch else library_mismatch(path, meta)
     if why:
@@ -277,39 +338,20 @@ def restore(path, method: str | None = None, *, allow_library_mismatch: bool = F
         raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
     if isinstance(num_tendons, bool) or not isinstance(num_tendons, int) or not 1 <= num_tendons <= 64:
         raise ValueError(f"checkpoint {path} has num_tendons {num_tendons!r}, expected an integer in 1..64")
-    graphdef, params = abstract(name, tuple(seeds), num_controls, num_tendons)
+    try:
+        model = model_config(meta)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"checkpoint {path}: {e}") from None
+    graphdef, params = abstract(name, tuple(seeds), num_controls, num_tendons, model)
     params, _ = checkpoints.restore(path, params)
-    return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons)
-
-
-def _flow(method: str, model, cond, intensity, eps, key, *, sampler: str, steps: int, guidance: float):
-    """Normalized flow/diffusion output ``(B, D)`` from noise ``eps (B, D)`` for conditions ``cond (B, 384)``.
-
-    ``guidance`` w: classifier-free guidance v = v_c + w (v_c - v_null) (w = 0: the conditional model
-    alone); the conditional and null rows go through the network as one batch.
-    """
-    b = cond.shape[0]
-    # What does not change across flow steps is computed once, before the sampler's loop: the
-    # condition's share of the first layer, and the time embedding's share for every step.
-    ctx = model.context(cond, intensity)
-    if guidance:
-        both = jnp.concatenate([ctx, model.null_context(b)])
-
-        def net(x, time_ctx):
-            v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
-            return v[:b] + guidance * (v[:b] - v[b:])
-    else:
-        net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)  # noqa: E731
-    if spec(method).generator == "rf":
-        return flows.rf_sample(net, eps, steps=steps, sampler=sampler, embed_time=model.time_context)
-    k2 = jax.random.fold_in(key, 1)
-    return flows.ddpm_sample(net, eps, k2, sampler="ancestral" if sampler == "euler" else sampler,
-                             sample_steps=steps, embed_time=model.time_context)
+    return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons,
+                   model=model)
 
 
 def actuation(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
               steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
-    """Ungated actuation for a batch of conditions (the generator and the spline reconstruction).
+    """Ungated actuation for a batch of conditions: the generator's sample (normalized controls or
+    trajectory), decoded to [0, 1], and the spline reconstruction u = R(c) for spline methods.
 
     Args:
       cond: condition embeddings ``(B, 384)``; intensity: ``(B,)`` int32; key: one key for the batch.
@@ -318,16 +360,9 @@ def actuation(method: str, graphdef, params, cond, intensity, key, *, sampler: s
     """
     s = spec(method)
     model = nnx.merge(graphdef, params)
-    b = cond.shape[0]
-    if s.generator == "cnn":
-        y = _decode(model(cond, intensity))  # (B, L, 4)
-        return splines.reconstruct(jnp.swapaxes(y, -1, -2)) if s.representation == "spline" else y
-    dim = num_tendons * (num_controls if s.representation == "spline" else T)
-    eps = jax.random.normal(key, (b, dim))
-    x = _flow(method, model, cond, intensity, eps, key, sampler=sampler, steps=steps, guidance=guidance)
-    y = _decode(x)
-    return splines.reconstruct(y.reshape(b, num_tendons, num_controls)) if s.representation == "spline" \
-        else y.reshape(b, T, num_tendons)
+    dim = num_tendons * s.representation.length(num_controls)
+    y = _decode(s.generator.sample(model, cond, intensity, key, dim, SampleConfig(sampler, steps, guidance)))
+    return s.representation.actuation(y, s.generator.sequence, num_tendons, num_controls)
 
 
 def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",

@@ -11,13 +11,12 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
-TIME_DIM = 128
-TEXT_DIM = 384
-INTENSITY_DIM = 64
+from jgrounding.config import ModelConfig
+from jgrounding.vocabulary import INTENSITIES
 
 
-def sinusoidal(t: jax.Array, dim: int = TIME_DIM) -> jax.Array:
-    """128-d sinusoidal embedding of times ``(...,)`` in [0, 1] -> ``(..., dim)``."""
+def sinusoidal(t: jax.Array, dim: int) -> jax.Array:
+    """Sinusoidal embedding of times ``(...,)`` in [0, 1] -> ``(..., dim)`` (Table I: dim 128)."""
     half = dim // 2
     freqs = jnp.exp(-jnp.log(10_000.0) * jnp.arange(half) / half)
     ang = 1000.0 * t[..., None] * freqs
@@ -27,13 +26,14 @@ def sinusoidal(t: jax.Array, dim: int = TIME_DIM) -> jax.Array:
 class Condition(nnx.Module):
     """E_m(m) (frozen, given) concatenated with a learnable E_z(z); raw conditioning uses only the text."""
 
-    def __init__(self, use_intensity: bool, *, rngs: nnx.Rngs):
+    def __init__(self, use_intensity: bool, config: ModelConfig = ModelConfig(), *, rngs: nnx.Rngs):
         self.use_intensity = use_intensity
-        self.intensity = nnx.Embed(4, INTENSITY_DIM, rngs=rngs) if use_intensity else None
+        self.text_dim = config.text_dim
+        self.intensity = nnx.Embed(len(INTENSITIES), config.intensity_dim, rngs=rngs) if use_intensity else None
 
     @property
     def dim(self) -> int:
-        return TEXT_DIM + (INTENSITY_DIM if self.use_intensity else 0)
+        return self.text_dim + (self.intensity.features if self.use_intensity else 0)
 
     def __call__(self, text_emb, intensity):
         if not self.use_intensity:
@@ -42,19 +42,29 @@ class Condition(nnx.Module):
 
 
 class VelocityMLP(nnx.Module):
-    """v_theta(c_lambda, lambda | E_m, E_z): 4-layer MLP, width 256, SiLU, 128-d time embedding."""
+    """v_theta(c_lambda, lambda | E_m, E_z): MLP (Table I: 4 layers, width 256, SiLU, 128-d time embedding).
 
-    def __init__(self, dim: int, use_intensity: bool = True, width: int = 256, *, rngs: nnx.Rngs):
-        self.cond = Condition(use_intensity, rngs=rngs)
-        self.l1 = nnx.Linear(dim + TIME_DIM + self.cond.dim, width, rngs=rngs)
-        self.l2 = nnx.Linear(width, width, rngs=rngs)
-        self.l3 = nnx.Linear(width, width, rngs=rngs)
-        self.l4 = nnx.Linear(width, dim, rngs=rngs)
+    Layers are ``l1 .. l<depth>``: the first takes [x, time embedding, condition]; the last is linear.
+    """
+
+    def __init__(self, dim: int, use_intensity: bool = True, config: ModelConfig = ModelConfig(), *,
+                 rngs: nnx.Rngs):
+        self.dim, self.time_dim, self.depth = dim, config.time_dim, config.depth
+        self.cond = Condition(use_intensity, config, rngs=rngs)
+        sizes = [dim + config.time_dim + self.cond.dim] + [config.width] * (config.depth - 1) + [dim]
+        for i in range(config.depth):
+            setattr(self, f"l{i + 1}", nnx.Linear(sizes[i], sizes[i + 1], rngs=rngs))
+
+    def _head(self, h):
+        """SiLU after the first layer, then the hidden layers and the linear output."""
+        h = nnx.silu(h)
+        for i in range(2, self.depth):
+            h = nnx.silu(getattr(self, f"l{i}")(h))
+        return getattr(self, f"l{self.depth}")(h)
 
     def context(self, text_emb, intensity):
         """The condition's share of the first layer: constant across flow steps, so computed once."""
-        dim = self.l4.out_features
-        w = self.l1.kernel.value[dim + TIME_DIM:]
+        w = self.l1.kernel.value[self.dim + self.time_dim:]
         return self.cond(text_emb, intensity) @ w + self.l1.bias.value
 
     def null_context(self, batch: int):
@@ -65,27 +75,18 @@ class VelocityMLP(nnx.Module):
     def time_context(self, t):
         """The flow time's share of the first layer ``(n,) -> (n, width)``: a sampler computes it for all
         its steps at once, before its loop (the schedule is fixed)."""
-        dim = self.l4.out_features
-        return sinusoidal(t) @ self.l1.kernel.value[dim:dim + TIME_DIM]
+        return sinusoidal(t, self.time_dim) @ self.l1.kernel.value[self.dim:self.dim + self.time_dim]
 
     def velocity(self, x, time_context, context):
         """One network evaluation from precomputed :meth:`time_context` and :meth:`context` rows."""
-        dim = self.l4.out_features
-        h = nnx.silu(x @ self.l1.kernel.value[:dim] + time_context + context)
-        h = nnx.silu(self.l2(h))
-        h = nnx.silu(self.l3(h))
-        return self.l4(h)
+        return self._head(x @ self.l1.kernel.value[:self.dim] + time_context + context)
 
     def __call__(self, x, t, text_emb, intensity, keep=None):
         """``keep (B,)`` in {0, 1}: 0 replaces the condition by the null condition (condition dropout)."""
         cond = self.cond(text_emb, intensity)
         if keep is not None:
             cond = cond * keep[:, None]
-        h = jnp.concatenate([x, sinusoidal(t), cond], axis=-1)
-        h = nnx.silu(self.l1(h))
-        h = nnx.silu(self.l2(h))
-        h = nnx.silu(self.l3(h))
-        return self.l4(h)
+        return self._head(self.l1(jnp.concatenate([x, sinusoidal(t, self.time_dim), cond], axis=-1)))
 
 
 class Conv1D(nnx.Module):
@@ -113,15 +114,15 @@ class Conv1D(nnx.Module):
 class CNNRegressor(nnx.Module):
     """Deterministic 1-D CNN: condition -> (length, N_u) trajectory (dense, T=150) or controls (P)."""
 
-    def __init__(self, length: int, use_intensity: bool = True, channels: int = 64, num_tendons: int = 4, *,
-                 rngs: nnx.Rngs):
+    def __init__(self, length: int, use_intensity: bool = True, channels: int = 64, num_tendons: int = 4,
+                 config: ModelConfig = ModelConfig(), *, rngs: nnx.Rngs):
         self.length = length
         self.base = max(length // 4, 1) if length > 16 else length
-        self.cond = Condition(use_intensity, rngs=rngs)
+        self.cond = Condition(use_intensity, config, rngs=rngs)
         self.inp = nnx.Linear(self.cond.dim, self.base * channels, rngs=rngs)
-        self.c1 = Conv1D(channels, channels, 5, rngs=rngs)
-        self.c2 = Conv1D(channels, channels, 5, rngs=rngs)
-        self.c3 = Conv1D(channels, channels, 5, rngs=rngs)
+        self.c1 = Conv1D(channels, channels, config.cnn_kernel, rngs=rngs)
+        self.c2 = Conv1D(channels, channels, config.cnn_kernel, rngs=rngs)
+        self.c3 = Conv1D(channels, channels, config.cnn_kernel, rngs=rngs)
         self.out = Conv1D(channels, num_tendons, 3, rngs=rngs)
         self.channels = channels
 

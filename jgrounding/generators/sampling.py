@@ -16,6 +16,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import functools
+import json
 import logging
 import time
 from pathlib import Path
@@ -29,9 +30,13 @@ from jgrounding import safety
 from jgrounding.generators import flows
 
 from jgrounding.generators import methods
+from jgrounding.training import checkpoints
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "assets" / "checkpoints" / "tuple_spline_rf"
+# Which shipped checkpoint serves which step count (python -m experiments.ship, from the training sweep):
+# {"default": <dir>, "few_step": [{"max_steps": S, "checkpoint": <dir>}, ...]} under assets/checkpoints.
+SHIPPED = DEFAULT_CHECKPOINT.parent / "shipped.json"
 MAX_SAMPLES = 4096  # samples per tuple
 MAX_TRAJECTORIES = 1 << 18  # N x K per call (~630 MB of float32 output)
 BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256, 640)  # compiled batch sizes; larger calls run chunks of 640
@@ -252,7 +257,8 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
     check_library(path)
     trained = methods.restore(path, allow_library_mismatch=allow_library_mismatch)
-    loaded = Model(trained, semantics.intent_embeddings(), name=str(path), covered=trained_tuples(path))
+    w = float(checkpoints.read_meta(path).get("sample", {}).get("guidance", 0.0))  # its recorded guidance
+    loaded = Model(trained, semantics.intent_embeddings(), name=str(path), covered=trained_tuples(path), guidance=w)
     m, z = min(loaded.covered) if loaded.covered else (0, 0)
     try:  # the self-test compiles the executable the first default ``sample`` call reuses
         u = loaded.sample(jax.random.key(0), m, z)
@@ -263,6 +269,19 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
         raise ValueError(f"checkpoint {path} failed its load self-test: a sample of "
                          f"({INTENTS[m]}, {INTENSITIES[z]}) has {bad}; refusing to use it")
     return loaded
+
+
+@functools.lru_cache(maxsize=64)
+def shipped_checkpoint(steps: int) -> Path:
+    """The shipped checkpoint that serves ``steps`` best (:data:`SHIPPED`, chosen by
+    ``python -m experiments.sweep training``): the few-step model of the smallest listed
+    ``max_steps >= steps`` (e.g. a 2-rectified flow), else the default."""
+    if not SHIPPED.exists():
+        return DEFAULT_CHECKPOINT
+    manifest = json.loads(SHIPPED.read_text())
+    fits = [e for e in manifest.get("few_step", []) if steps <= e["max_steps"]]
+    name = min(fits, key=lambda e: e["max_steps"])["checkpoint"] if fits else manifest.get("default")
+    return DEFAULT_CHECKPOINT.parent / name if name else DEFAULT_CHECKPOINT
 
 
 def load(checkpoint: str | Path | None = None, allow_library_mismatch: bool = False):
@@ -285,7 +304,8 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
       num_samples: K samples per tuple, 1..4096.
       sampler: ``euler`` (default) | ``midpoint`` | ``rk4`` for a rectified flow; ``ancestral`` | ``ddim``
         for a DDPM checkpoint. steps: S sampler steps, 1..1000.
-      checkpoint: a checkpoint directory (default: the shipped Tuple + Spline + RF).
+      checkpoint: a checkpoint directory (default: the shipped Tuple + Spline + RF that serves ``steps``
+        best, :func:`shipped_checkpoint`); each checkpoint samples with its recorded guidance weight.
       current: the command the robot holds now: ``"rest"`` (default, every tendon slack), a ``(N_u,)``
         command in [0, 1] (e.g. the last step of the previous response), or None. The trajectories blend
         in from it within the slew bound (:mod:`jgrounding.safety`, guarantee 4), so consecutive
@@ -309,6 +329,9 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
             raise ValueError(f"screen must be True or False, got {screen!r}")
         return screened(key, intent, intensity, num_samples, sampler=sampler, steps=steps, checkpoint=checkpoint,
                         current=current).u
+    if checkpoint is None and isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
+        checkpoint = shipped_checkpoint(int(steps))
+        checkpoint = None if checkpoint == DEFAULT_CHECKPOINT else checkpoint
     return model(checkpoint, allow_library_mismatch).sample(key, intent, intensity, num_samples, sampler=sampler,
                                                              steps=steps, current=current)
 

@@ -8,7 +8,6 @@ chunks so an interrupted run resumes and ends with the same parameters as an uni
 from __future__ import annotations
 
 import dataclasses
-import numbers
 from typing import Any, Callable
 
 import jax
@@ -16,40 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from jgrounding.config import TrainConfig  # noqa: F401  (re-exported: training.TrainConfig)
 from jgrounding.training import distributed
-
-from jgrounding.generators import flows
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainConfig:
-    """Defaults are the paper's Table I."""
-
-    steps: int = 10_000
-    batch_size: int = 8
-    learning_rate: float = 1e-3
-    weight_decay: float = 1e-4
-    chunk: int = 1_000  # steps per compiled chunk (progress / checkpoint granularity)
-    ema_decay: float = 0.0  # 0 = off; else the model is evaluated with an EMA of its parameters (warm-up below)
-    time_sampler: str = "uniform"  # flow-time distribution of the RF loss (flows.TIME_SAMPLERS)
-    condition_dropout: float = 0.0  # probability of training on the null condition (classifier-free guidance)
-
-    def __post_init__(self):
-        for name, low in (("steps", 0), ("batch_size", 1), ("chunk", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
-                raise ValueError(f"TrainConfig.{name} must be an integer >= {low}, got {value!r}")
-        for name in ("learning_rate", "weight_decay"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
-                raise ValueError(f"TrainConfig.{name} must be a finite number >= 0, got {value!r}")
-        for name in ("ema_decay", "condition_dropout"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < 1:
-                raise ValueError(f"TrainConfig.{name} must be a number in [0, 1), got {value!r}")
-        if self.time_sampler not in flows.TIME_SAMPLERS:
-            raise ValueError(f"TrainConfig.time_sampler must be one of {', '.join(flows.TIME_SAMPLERS)}, "
-                             f"got {self.time_sampler!r}")
 
 
 @jax.tree_util.register_dataclass
