@@ -10,8 +10,8 @@ from flax import nnx
 
 import jgrounding as jg
 from jgrounding import semantics, training
-from jgrounding.generators import flows
-from jgrounding.generators import methods
+from jgrounding.config import SampleConfig
+from jgrounding.generators import flows, methods
 from jgrounding.generators.networks import VelocityMLP
 
 
@@ -79,9 +79,9 @@ def test_guidance_extrapolates_from_the_null_condition(tiny):
     model = nnx.merge(tr.graphdef, jax.tree.map(lambda x: x[0], tr.params))
     cond = jnp.asarray(semantics.intent_embeddings()[:3])
     z = jnp.array([0, 1, 3])
-    eps = jax.random.normal(jax.random.key(0), (3, 16))
+    eps = jax.random.normal(jax.random.key(0), (3, 16))  # what the sampler draws from its key
     w = 2.0
-    got = methods._flow(tr.method, model, cond, z, eps, jax.random.key(0), sampler="euler", steps=1, guidance=w)
+    got = methods.spec(tr.method).generator.sample(model, cond, z, jax.random.key(0), 16, SampleConfig("euler", 1, w))
     tc = model.time_context(jnp.zeros(1))[0]
     v_c = model.velocity(eps, tc, model.context(cond, z))
     v_u = model.velocity(eps, tc, model.null_context(3))

@@ -8,10 +8,10 @@ import pytest
 
 import jgrounding as jg
 from jgrounding import safety, training
-from jgrounding.training import checkpoints
-from jgrounding.generators import flows
-from jgrounding.generators import methods
+from jgrounding.config import ModelConfig
+from jgrounding.generators import flows, methods
 from jgrounding.generators.networks import CNNRegressor, VelocityMLP
+from jgrounding.training import checkpoints
 from flax import nnx
 
 MODES = jnp.array([[-0.8, 0.8], [0.8, -0.8]])  # two modes for the same condition
@@ -20,7 +20,7 @@ MODES = jnp.array([[-0.8, 0.8], [0.8, -0.8]])  # two modes for the same conditio
 def toy_train(generator: str, steps: int = 2500):
     """Train a tiny model on a 2-mode dataset (one condition); returns samples (512, 2)."""
     rngs = nnx.Rngs(0)
-    model = VelocityMLP(2, True, width=64, rngs=rngs) if generator != "cnn" else None
+    model = VelocityMLP(2, True, ModelConfig(width=64), rngs=rngs) if generator != "cnn" else None
     if generator == "cnn":
         model = CNNRegressor(1, True, channels=16, rngs=rngs)
     graphdef, params = nnx.split(model)
