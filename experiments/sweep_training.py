@@ -18,11 +18,9 @@ import jax
 import numpy as np
 
 from jgrounding import load_library, semantics
-
-from jgrounding.generators import methods
-
-from jgrounding.evaluation import latency, metrics
 from jgrounding.apps.plotting import plt, save
+from jgrounding.evaluation import latency, metrics
+from jgrounding.generators import methods
 from jgrounding.training import TrainConfig
 
 RF, DDPM = "tuple_spline_rf", "tuple_spline_ddpm"

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import numbers
 
-SAMPLERS = ("euler", "midpoint", "rk4", "ancestral", "ddim")  # ancestral/ddim: DDPM only
+SAMPLERS = ("euler", "midpoint", "rk4", "ancestral", "ddim", "none")  # ancestral/ddim: DDPM; none: regressors
 TIME_SAMPLERS = ("uniform", "logit_normal", "beta")  # generators.flows.TIME_SAMPLERS implements these
 
 

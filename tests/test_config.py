@@ -10,8 +10,8 @@ import pytest
 import jgrounding as jg
 from jgrounding import config, training
 from jgrounding.generators import methods
-from jgrounding.training import checkpoints
 from jgrounding.generators.sampling import DEFAULT_CHECKPOINT
+from jgrounding.training import checkpoints
 
 
 def test_defaults_are_table_one():
@@ -27,7 +27,7 @@ def test_unknown_names_and_bad_sizes_are_refused_with_the_choices():
         config.get("papr")
     with pytest.raises(ValueError, match="ModelConfig.width"):
         config.ModelConfig(width=0)
-    with pytest.raises(ValueError, match="euler, midpoint, rk4"):
+    with pytest.raises(ValueError, match="euler, midpoint, rk4, ancestral, ddim, none"):
         config.SampleConfig(sampler="heun")
 
 

@@ -29,9 +29,12 @@ class Representation(Protocol):
 
 class Generator(Protocol):
     """A generator of Table II. ``sequence``: its network reads and writes targets as ``(B, L, N_u)``
-    sequences (the CNNs) instead of flat ``(B, N_u * L)`` vectors (the MLPs)."""
+    sequences (the CNNs) instead of flat ``(B, N_u * L)`` vectors (the MLPs); ``iterative``: sampling
+    takes steps S; ``samplers``: the sampler names it accepts, its default first."""
 
     sequence: bool
+    iterative: bool
+    samplers: tuple[str, ...]
 
     def init(self, key: jax.Array, representation: Representation, num_controls: int, num_tendons: int,
              use_intensity: bool, config: ModelConfig) -> nnx.Module:

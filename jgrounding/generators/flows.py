@@ -89,7 +89,7 @@ def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time
 
     def body(k, x):
         f = feats[k]
-        v = lambda y, i: velocity(y, as_input(y, f[i]))  # noqa: E731
+        v = lambda y, i: velocity(y, as_input(y, f[i]))
         if sampler == "euler":
             return x + dt * v(x, 0)
         if sampler == "midpoint":
@@ -171,6 +171,7 @@ class _Flow:
     training and classifier-free guidance in sampling. Subclasses give ``loss`` and ``_integrate``."""
 
     sequence = False
+    iterative = True  # sampling steps S apply
 
     def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool,
              config: ModelConfig) -> nnx.Module:
@@ -203,12 +204,14 @@ class _Flow:
                 v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
                 return v[:b] + w * (v[:b] - v[b:])
         else:
-            net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)  # noqa: E731
+            net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)
         return self._integrate(net, eps, key, config, model.time_context)
 
 
 class RectifiedFlow(_Flow):
     """Sec. III-C: the paper's generator (Eqs. rf_loss, rf_inference)."""
+
+    samplers = SAMPLERS
 
     def loss(self, model, batch, key, config: TrainConfig):
         key, net = self._network(model, batch, key, config)
@@ -222,6 +225,8 @@ class RectifiedFlow(_Flow):
 
 class DDPM(_Flow):
     """The diffusion baseline of Table II (epsilon prediction, cosine schedule)."""
+
+    samplers = DDPM_SAMPLERS
 
     def loss(self, model, batch, key, config: TrainConfig):
         key, net = self._network(model, batch, key, config)

@@ -34,6 +34,8 @@ class Regressor:
     """The deterministic 1-D CNN regressors of Table II: squared error to the demonstration."""
 
     sequence = True
+    iterative = False
+    samplers = ("none",)  # one deterministic forward pass
 
     def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool,
              config: ModelConfig):

@@ -27,7 +27,6 @@ import numpy as np
 
 from jgrounding import safety
 
-from jgrounding.generators import flows
 
 from jgrounding.generators import methods
 from jgrounding.training import checkpoints
@@ -40,8 +39,6 @@ SHIPPED = DEFAULT_CHECKPOINT.parent / "shipped.json"
 MAX_SAMPLES = 4096  # samples per tuple
 MAX_TRAJECTORIES = 1 << 18  # N x K per call (~630 MB of float32 output)
 BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256, 640)  # compiled batch sizes; larger calls run chunks of 640
-DEFAULT_SAMPLER = {"rf": "euler", "ddpm": "ancestral", "cnn": "none"}
-SAMPLERS = {"rf": flows.SAMPLERS, "ddpm": flows.DDPM_SAMPLERS, "cnn": ("none",)}
 # (checkpoint, sampler, steps, bucket) -> times traced; a test checks repeated calls trace once.
 TRACES: collections.Counter = collections.Counter()
 
@@ -104,13 +101,13 @@ class Model:
         if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
                 or not 1 <= num_samples <= MAX_SAMPLES:
             raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
-        sampler = DEFAULT_SAMPLER[self.generator] if sampler is None else sampler
-        valid = SAMPLERS[self.generator]
+        valid = self.generator.samplers  # the first is the generator's default
+        sampler = valid[0] if sampler is None else sampler
         if not isinstance(sampler, str) or sampler not in valid:
             raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(valid)}")
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 1000:
             raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
-        return sampler, int(steps) if self.generator != "cnn" else 1
+        return sampler, int(steps) if self.generator.iterative else 1
 
     def sample(self, key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None,
                steps: int = 50, current=safety.REST) -> np.ndarray:

@@ -8,14 +8,15 @@ chunks so an interrupted run resumes and ends with the same parameters as an uni
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
-from jgrounding.config import TrainConfig  # noqa: F401  (re-exported: training.TrainConfig)
+from jgrounding.config import TrainConfig
 from jgrounding.training import distributed
 
 

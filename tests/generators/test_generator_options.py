@@ -34,7 +34,7 @@ def test_unknown_time_sampler_lists_the_valid_ones():
 def test_rf_loss_uses_the_coupled_noise_it_is_given():
     c = jax.random.normal(jax.random.key(1), (5, 3))
     noise = jax.random.normal(jax.random.key(2), (5, 3))
-    exact = lambda x, t: c - noise  # noqa: E731  the straight velocity of exactly these pairs
+    exact = lambda x, t: c - noise
     assert float(flows.rf_loss(exact, c, jax.random.key(3), noise=noise)) == 0.0
     assert float(flows.rf_loss(exact, c, jax.random.key(3))) > 0.1  # a fresh draw is another eps
 
