@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install test test-fast ablation sweeps bench library clean
+.PHONY: install test test-fast ablation sweeps generator ship bench library clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,14 @@ sweeps: install
 	$(PY) -m experiments.sweep steps
 	$(PY) -m experiments.sweep controls
 	$(PY) -m tools.readme
+
+# Generator options (EMA, flow-time sampling, guidance, reflow; ~36 min on 2 busy cores), then ship its choice.
+generator: install
+	$(PY) -m experiments.sweep training
+	$(PY) -m tools.readme
+
+ship: install
+	$(PY) -m experiments.ship
 
 bench: install
 	$(PY) -m experiments.bench all

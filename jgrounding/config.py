@@ -5,8 +5,9 @@
 - :class:`TrainConfig`: AdamW, batch, steps, and the generator options of issue #16 (EMA, flow-time
   distribution, condition dropout for classifier-free guidance), each off by default.
 - :class:`SampleConfig`: sampler, steps S, guidance weight w.
-- :data:`CONFIGS`: named (model, train, sample) triples: ``paper`` (Table I) and ``shipped`` (the
-  checkpoint ``jg.sample`` loads; chosen by ``python -m experiments.sweep training``).
+- :data:`CONFIGS`: named (model, train, sample) triples; ``paper`` is Table I. What the shipped
+  checkpoints were trained with is recorded in their own meta.json (chosen by
+  ``python -m experiments.sweep training``, trained by ``python -m experiments.ship``).
 
 This module imports nothing from the package, so every stage can import it without a cycle.
 """
