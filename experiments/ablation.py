@@ -10,6 +10,7 @@ fine-tuning on screened samples, :mod:`jgrounding.training.physics`), and writes
 results/ablation.{md,csv,json} plus results/ablation_rms.npz (per-sample RMS, reused by the sweeps).
 Every cell is mean ± std over seeds.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,20 +30,29 @@ from jgrounding import library, load_library, semantics, sim
 from jgrounding.evaluation import latency, metrics
 from jgrounding.evaluation import physics as trunk_eval
 from jgrounding.generators import methods
-from jgrounding.training import checkpoints, distributed
+from jgrounding.training import TrainConfig, checkpoints, distributed
 from jgrounding.training import physics as physics_training
-from jgrounding.training import TrainConfig
 
 PAPER = {  # Table II of the paper: success, diversity, time (ms)
-    "raw_dense_cnn": (0.250, 0.000, 0.85), "tuple_dense_cnn": (0.488, 0.000, 0.51),
-    "tuple_spline_cnn": (0.562, 0.000, 1.89), "tuple_spline_ddpm": (0.719, 0.165, 7.86),
+    "raw_dense_cnn": (0.250, 0.000, 0.85),
+    "tuple_dense_cnn": (0.488, 0.000, 0.51),
+    "tuple_spline_cnn": (0.562, 0.000, 1.89),
+    "tuple_spline_ddpm": (0.719, 0.165, 7.86),
     "tuple_spline_rf": (0.772, 0.148, 4.87),
 }
 PHYSICS_AWARE = "tuple_spline_rf_physics"  # the RF fine-tuned on screened samples (an extra row)
 DISPLAY = {**methods.DISPLAY, PHYSICS_AWARE: "Tuple + Spline + RF, physics-aware (RFT)"}
 _NAN = (float("nan"), float("nan"))
-NO_PHYSICS = {"shape_rms_m": _NAN, "shape_success": _NAN, "shape_diversity_m": _NAN, "feasible": _NAN,
-              "simulated": 0, "samples": 0, "physics_s": 0.0, "engine": "skipped"}  # a library with N_u != 4
+NO_PHYSICS = {
+    "shape_rms_m": _NAN,
+    "shape_success": _NAN,
+    "shape_diversity_m": _NAN,
+    "feasible": _NAN,
+    "simulated": 0,
+    "samples": 0,
+    "physics_s": 0.0,
+    "engine": "skipped",
+}  # a library with N_u != 4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,8 +72,9 @@ class AblationConfig:
     library: str | None = None  # library .npz (None: the shipped one), e.g. imported from recordings
 
 
-QUICK = dict(seeds=(0, 1), steps=300, k_div=8,
-             physics=physics_training.PhysicsConfig(rounds=1, candidates=4, steps=100))
+QUICK = dict(
+    seeds=(0, 1), steps=300, k_div=8, physics=physics_training.PhysicsConfig(rounds=1, candidates=4, steps=100)
+)
 
 
 def mean_std(x) -> tuple[float, float]:
@@ -94,8 +105,10 @@ def coverage(u, lib) -> np.ndarray:
     if len({int((every_key == k).sum()) for k in key(lib.heldout)}) == 1:
         return np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)
     every = np.concatenate([lib.train.u, lib.heldout.u])
-    return np.stack([np.asarray(metrics.coverage(u[:, j], every[every_key == k][None])) for j, k in
-                     enumerate(key(lib.heldout))], axis=1).mean(axis=1)
+    return np.stack(
+        [np.asarray(metrics.coverage(u[:, j], every[every_key == k][None])) for j, k in enumerate(key(lib.heldout))],
+        axis=1,
+    ).mean(axis=1)
 
 
 def physics(u, ref, tol, engine="auto"):
@@ -103,12 +116,16 @@ def physics(u, ref, tol, engine="auto"):
     backbones ``ref (64, T, 11, 3)``: shape RMS, shape success (all samples, ``<= tol.tau_m``), shape
     diversity and feasibility, each mean ± std over seeds; plus the rollouts' count and seconds."""
     res = [trunk_eval.simulate_samples(x, ref, tol.tau_m, engine=engine) for x in u]
-    return {"shape_rms_m": mean_std([r["shape_rms"].mean() for r in res]),
-            "shape_success": mean_std([r["shape_success"].mean() for r in res]),
-            "shape_diversity_m": mean_std([r["diversity"].mean() for r in res]),
-            "feasible": mean_std([r["feasible"].mean() for r in res]),
-            "simulated": int(sum(r["simulated"] for r in res)), "samples": int(np.prod(u.shape[:3])),
-            "physics_s": float(sum(r["seconds"] for r in res)), "engine": res[0]["engine"]}
+    return {
+        "shape_rms_m": mean_std([r["shape_rms"].mean() for r in res]),
+        "shape_success": mean_std([r["shape_success"].mean() for r in res]),
+        "shape_diversity_m": mean_std([r["diversity"].mean() for r in res]),
+        "feasible": mean_std([r["feasible"].mean() for r in res]),
+        "simulated": int(sum(r["simulated"] for r in res)),
+        "samples": int(np.prod(u.shape[:3])),
+        "physics_s": float(sum(r["seconds"] for r in res)),
+        "engine": res[0]["engine"],
+    }
 
 
 def run(cfg: AblationConfig, lib=None) -> dict:
@@ -117,8 +134,11 @@ def run(cfg: AblationConfig, lib=None) -> dict:
     num_tendons = int(lib.train.u.shape[-1])
     simulate = num_tendons == sim.NUM_CHANNELS
     if not simulate:
-        print(f"note: physics columns and the physics-aware row skipped: the built-in simulator is the "
-              f"{sim.NUM_CHANNELS}-tendon trunk, this library has N_u = {num_tendons}", flush=True)
+        print(
+            f"note: physics columns and the physics-aware row skipped: the built-in simulator is the "
+            f"{sim.NUM_CHANNELS}-tendon trunk, this library has N_u = {num_tendons}",
+            flush=True,
+        )
     intent_emb = semantics.intent_embeddings()
     train_texts = semantics.embed([t for row in lib.train.texts for t in row]).reshape(len(lib.train), -1, 384)
     heldout_text = semantics.embed([row[0] for row in lib.heldout.texts])
@@ -130,12 +150,20 @@ def run(cfg: AblationConfig, lib=None) -> dict:
     if simulate:
         lib_u = np.concatenate([lib.train.u, lib.heldout.u])
         lib_backbone = sim.rollout(lib_u, engine=cfg.engine).backbone
-        ref_backbone = lib_backbone[len(lib.train):]
-        tol = trunk_eval.calibrate(lib_u, lib_backbone, np.concatenate([lib.train.intent, lib.heldout.intent]),
-                                   np.concatenate([lib.train.intensity, lib.heldout.intensity]), cfg.tau)
-        print(f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise "
-              f"shape RMS, as tau = {cfg.tau} is of its actuation RMS (within-tuple median "
-              f"{tol.within_tuple_median_m:.3f} m, wrong-intent {tol.wrong_intent_median_m:.3f} m)", flush=True)
+        ref_backbone = lib_backbone[len(lib.train) :]
+        tol = trunk_eval.calibrate(
+            lib_u,
+            lib_backbone,
+            np.concatenate([lib.train.intent, lib.heldout.intent]),
+            np.concatenate([lib.train.intensity, lib.heldout.intensity]),
+            cfg.tau,
+        )
+        print(
+            f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise "
+            f"shape RMS, as tau = {cfg.tau} is of its actuation RMS (within-tuple median "
+            f"{tol.within_tuple_median_m:.3f} m, wrong-intent {tol.wrong_intent_median_m:.3f} m)",
+            flush=True,
+        )
     physics_s = time.perf_counter() - t_lib
     key = jax.random.key(2026)
     todo = list(cfg.methods)
@@ -146,58 +174,100 @@ def run(cfg: AblationConfig, lib=None) -> dict:
         raw = method != PHYSICS_AWARE and methods.spec(method).condition == "raw"
         t0 = time.perf_counter()
         if method == PHYSICS_AWARE:  # fine-tunes the RF trained above (its simulation counts as physics time)
-            trained, rounds = physics_training.finetune(rf_trained, lib, jax.random.key(17), intent_emb=intent_emb,
-                                                        physics=cfg.physics, config=train_cfg)
+            trained, rounds = physics_training.finetune(
+                rf_trained, lib, jax.random.key(17), intent_emb=intent_emb, physics=cfg.physics, config=train_cfg
+            )
             physics_s += sum(r["seconds"] for r in rounds)
         else:
-            trained = methods.train(method, lib, cfg.seeds, train_cfg, intent_emb=intent_emb,
-                                    text_emb=train_texts if raw else None, mesh=mesh)
+            trained = methods.train(
+                method,
+                lib,
+                cfg.seeds,
+                train_cfg,
+                intent_emb=intent_emb,
+                text_emb=train_texts if raw else None,
+                mesh=mesh,
+            )
             rf_trained = trained if method == "tuple_spline_rf" else rf_trained
         train_s = time.perf_counter() - t0
-        checkpoints.save(Path(cfg.runs) / method, trained.params,
-                         {**methods.checkpoint_meta(trained), "variant": method,
-                          "config": dataclasses.asdict(train_cfg), "library_sha256": library.file_hash(lib.path),
-                          "step": cfg.steps})
+        checkpoints.save(
+            Path(cfg.runs) / method,
+            trained.params,
+            {
+                **methods.checkpoint_meta(trained),
+                "variant": method,
+                "config": dataclasses.asdict(train_cfg),
+                "library_sha256": library.file_hash(lib.path),
+                "step": cfg.steps,
+            },
+        )
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
-        u, r, div, cov, lat_ms, throughput = evaluate(method, trained, lib, cfg, cond_eval,
-                                                      jax.random.fold_in(key, len(rows)), mesh)
+        u, r, div, cov, lat_ms, throughput = evaluate(
+            method, trained, lib, cfg, cond_eval, jax.random.fold_in(key, len(rows)), mesh
+        )
         phys = physics(u, ref_backbone, tol, cfg.engine) if simulate else NO_PHYSICS
         physics_s += phys["physics_s"]
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
         rows[method] = {
-            "success": mean_std(succ), "success_all_samples": mean_std((r <= cfg.tau).mean(axis=(1, 2))),
-            "rms": mean_std(r.mean(axis=(1, 2))), "diversity": mean_std(div), "coverage": mean_std(cov),
+            "success": mean_std(succ),
+            "success_all_samples": mean_std((r <= cfg.tau).mean(axis=(1, 2))),
+            "rms": mean_std(r.mean(axis=(1, 2))),
+            "diversity": mean_std(div),
+            "coverage": mean_std(cov),
             "time_ms": lat_ms,
             "time_measures": latency.measures(trained),
-            "throughput_per_s": throughput, "train_s": train_s, **phys,
+            "throughput_per_s": throughput,
+            "train_s": train_s,
+            **phys,
         }
         per_sample[method] = r
-        print(f"{DISPLAY[method]:24s} success {rows[method]['success'][0]:.3f} ± {rows[method]['success'][1]:.3f}"
-              f"  div {rows[method]['diversity'][0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s  feasible "
-              f"{phys['feasible'][0]:.4f} over {phys['samples']} simulated samples ({phys['physics_s']:.0f} s)", flush=True)
+        print(
+            f"{DISPLAY[method]:24s} success {rows[method]['success'][0]:.3f} ± {rows[method]['success'][1]:.3f}"
+            f"  div {rows[method]['diversity'][0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s  feasible "
+            f"{phys['feasible'][0]:.4f} over {phys['samples']} simulated samples ({phys['physics_s']:.0f} s)",
+            flush=True,
+        )
     refs = metrics.reference_baselines(lib, seed=0, draws=max(len(cfg.seeds), 5))
     rng = np.random.default_rng(0)
-    ref_phys = {name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, cfg.engine)
-                if simulate else NO_PHYSICS for name in ("oracle", "wrong_intent_any_intensity") if name in refs}
+    ref_phys = {
+        name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, cfg.engine)
+        if simulate
+        else NO_PHYSICS
+        for name in ("oracle", "wrong_intent_any_intensity")
+        if name in refs
+    }
     mean_u = metrics.tuple_mean(lib)
     r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
-    refs["tuple_mean"] = {"success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
-                          "rms": (float(r_mean.mean()), 0.0)}
+    refs["tuple_mean"] = {
+        "success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
+        "rms": (float(r_mean.mean()), 0.0),
+    }
     ref_phys["tuple_mean"] = physics(mean_u[None, :, None], ref_backbone, tol, cfg.engine) if simulate else NO_PHYSICS
     # Brackets of the benchmark (library.brackets): expected values over the library, no sampling.
     complete = len(lib.heldout) == 64 and len(lib.train) == 192  # an imported library may lack tuples
     brackets, dist = (library.brackets(lib, metrics.TAUS), library.bracket_distances(lib)) if complete else ({}, {})
     for name in BRACKETS if complete else ():
-        refs[name] = {"success": {t: (v, 0.0) for t, v in brackets[name].items()},
-                      "rms": (float(np.mean([x.mean() for x in dist[name]])), 0.0)}
+        refs[name] = {
+            "success": {t: (v, 0.0) for t, v in brackets[name].items()},
+            "rms": (float(np.mean([x.mean() for x in dist[name]])), 0.0),
+        }
     physics_s += sum(p["physics_s"] for p in ref_phys.values())
-    return {"config": dataclasses.asdict(cfg), "rows": rows, "references": refs, "reference_physics": ref_phys,
-            "shape_tolerance": dataclasses.asdict(tol) if tol else None, "physics_s": physics_s, "run_s": time.perf_counter() - t_run,
-            "physics_engine": sim.resolve_engine(cfg.engine),
-            "per_sample_rms": per_sample, "samples": samples, "date": datetime.datetime.now().isoformat(timespec="seconds"),
-            "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
-                       f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})"}
+    return {
+        "config": dataclasses.asdict(cfg),
+        "rows": rows,
+        "references": refs,
+        "reference_physics": ref_phys,
+        "shape_tolerance": dataclasses.asdict(tol) if tol else None,
+        "physics_s": physics_s,
+        "run_s": time.perf_counter() - t_run,
+        "physics_engine": sim.resolve_engine(cfg.engine),
+        "per_sample_rms": per_sample,
+        "samples": samples,
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
+        f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})",
+    }
 
 
 def fmt(ms):
@@ -209,58 +279,76 @@ def fmt4(ms):
 
 
 BRACKETS = ("wrong_intent", "far_intensity", "adjacent_intensity")
-REFERENCES = (("oracle", "Oracle (replay same tuple)"), ("tuple_mean", "Tuple mean (avg. of its 3 train realizations)"),
-              ("wrong_intent_any_intensity", "Wrong intent (replay)"),
-              ("wrong_intent", "Bracket: wrong intent, same intensity (expected)"),
-              ("far_intensity", "Bracket: same intent, 2+ intensity levels away (expected)"),
-              ("adjacent_intensity", "Bracket: same intent, adjacent intensity (expected)"))
+REFERENCES = (
+    ("oracle", "Oracle (replay same tuple)"),
+    ("tuple_mean", "Tuple mean (avg. of its 3 train realizations)"),
+    ("wrong_intent_any_intensity", "Wrong intent (replay)"),
+    ("wrong_intent", "Bracket: wrong intent, same intensity (expected)"),
+    ("far_intensity", "Bracket: same intent, 2+ intensity levels away (expected)"),
+    ("adjacent_intensity", "Bracket: same intent, adjacent intensity (expected)"),
+)
 
 
 def markdown(res: dict) -> str:
     cfg = res["config"]
-    lines = [f"Ablation (Table II), {len(cfg['seeds'])} seeds, {cfg['steps']} steps, K_div = {cfg['k_div']}, "
-             f"tau = {cfg['tau']}, S = {cfg['euler_steps']}. {res['date']}, {res['machine']}.", "",
-             "| Method | Succ. | Succ. (all samples) | Div. | Coverage RMS ↓ | Time (ms) | Shape RMS (m) | Shape succ. |"
-             " Shape div. (m) | Feasible | Paper Succ. / Div. / Time |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"Ablation (Table II), {len(cfg['seeds'])} seeds, {cfg['steps']} steps, K_div = {cfg['k_div']}, "
+        f"tau = {cfg['tau']}, S = {cfg['euler_steps']}. {res['date']}, {res['machine']}.",
+        "",
+        "| Method | Succ. | Succ. (all samples) | Div. | Coverage RMS ↓ | Time (ms) | Shape RMS (m) | Shape succ. |"
+        " Shape div. (m) | Feasible | Paper Succ. / Div. / Time |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for m, r in res["rows"].items():
         p = PAPER.get(m)
         paper = f"{p[0]:.3f} / {p[1]:.3f} / {p[2]:.2f}" if p else "–"
-        lines.append(f"| {DISPLAY[m]} | {fmt(r['success'])} | {fmt(r['success_all_samples'])} | "
-                     f"{fmt(r['diversity'])} | {fmt(r['coverage'])} | {r['time_ms']:.3f} | {fmt(r['shape_rms_m'])} | "
-                     f"{fmt(r['shape_success'])} | {fmt(r['shape_diversity_m'])} | {fmt4(r['feasible'])} | {paper} |")
+        lines.append(
+            f"| {DISPLAY[m]} | {fmt(r['success'])} | {fmt(r['success_all_samples'])} | "
+            f"{fmt(r['diversity'])} | {fmt(r['coverage'])} | {r['time_ms']:.3f} | {fmt(r['shape_rms_m'])} | "
+            f"{fmt(r['shape_success'])} | {fmt(r['shape_diversity_m'])} | {fmt4(r['feasible'])} | {paper} |"
+        )
     tau = float(cfg["tau"])
     for name, label in REFERENCES:
         if name not in res["references"]:
             continue  # a partial (imported) library has nothing to replay for it
         s = res["references"][name]["success"][tau]
         ph = res["reference_physics"].get(name)
-        phys = (f"{ph['shape_rms_m'][0]:.3f} | {ph['shape_success'][0]:.3f} | – | {ph['feasible'][0]:.4f}" if ph
-                else "– | – | – | –")
+        phys = (
+            f"{ph['shape_rms_m'][0]:.3f} | {ph['shape_success'][0]:.3f} | – | {ph['feasible'][0]:.4f}"
+            if ph
+            else "– | – | – | –"
+        )
         lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {phys} | – |")
     tol, n_sim = res["shape_tolerance"], sum(r["samples"] for r in res["rows"].values())
-    lines += ["", "Succ.: one sample per held-out tuple within τ of its reference (the paper's protocol); "
-              "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
-              "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
-              "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory, "
-              "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included), "
-              "through jg.sample's public path; for the raw-text method through the compiled core (jg.sample "
-              "takes tuples). "]
+    lines += [
+        "",
+        "Succ.: one sample per held-out tuple within τ of its reference (the paper's protocol); "
+        "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
+        "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
+        "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory, "
+        "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included), "
+        "through jg.sample's public path; for the raw-text method through the compiled core (jg.sample "
+        "takes tuples). ",
+    ]
     if tol is None:
-        lines[-1] += (f"Physics columns skipped (nan): the built-in simulator is the 4-tendon trunk, and this library "
-                      f"({res['config']['library']}) has another number of tendons.")
+        lines[-1] += (
+            f"Physics columns skipped (nan): the built-in simulator is the 4-tendon trunk, and this library "
+            f"({res['config']['library']}) has another number of tendons."
+        )
         return "\n".join(lines) + "\n"
-    lines[-1] += (f"Physics columns: every generated sample simulated ({n_sim:,} trajectories, K_div × 64 per method and "
-                  f"seed, engine {res['physics_engine']}, {res['physics_s']:.0f} s of the run's {res['run_s']:.0f} s); "
-                  "Shape RMS: backbone RMS (over time and the 11 backbone points) to the held-out reference's simulated "
-                  f"motion; Shape succ.: fraction of all samples within {tol['tau_m']:.3f} m, the "
-                  f"{tol['percentile']:.1f}th percentile of the library's pairwise shape RMS, as τ = {tol['tau_rms']} is of "
-                  f"its pairwise actuation RMS (library: within-tuple median {tol['within_tuple_median_m']:.3f} m, wrong "
-                  f"intent {tol['wrong_intent_median_m']:.3f} m; {100 * tol['oracle_success']:.0f}% of same-tuple and "
-                  f"{100 * tol['wrong_intent_success']:.0f}% of different-intent pairs inside); Shape div.: mean pairwise "
-                  "shape RMS of a tuple's K_div samples; Feasible: stable, contact force and tip speed near the user within "
-                  "bounds (MuJoCo), over all samples. The physics-aware row fine-tunes the RF on its own screened samples "
-                  "(jgrounding/training/physics.py).")
+    lines[-1] += (
+        f"Physics columns: every generated sample simulated ({n_sim:,} trajectories, K_div × 64 per method and "
+        f"seed, engine {res['physics_engine']}, {res['physics_s']:.0f} s of the run's {res['run_s']:.0f} s); "
+        "Shape RMS: backbone RMS (over time and the 11 backbone points) to the held-out reference's simulated "
+        f"motion; Shape succ.: fraction of all samples within {tol['tau_m']:.3f} m, the "
+        f"{tol['percentile']:.1f}th percentile of the library's pairwise shape RMS, as τ = {tol['tau_rms']} is of "
+        f"its pairwise actuation RMS (library: within-tuple median {tol['within_tuple_median_m']:.3f} m, wrong "
+        f"intent {tol['wrong_intent_median_m']:.3f} m; {100 * tol['oracle_success']:.0f}% of same-tuple and "
+        f"{100 * tol['wrong_intent_success']:.0f}% of different-intent pairs inside); Shape div.: mean pairwise "
+        "shape RMS of a tuple's K_div samples; Feasible: stable, contact force and tip speed near the user within "
+        "bounds (MuJoCo), over all samples. The physics-aware row fine-tunes the RF on its own screened samples "
+        "(jgrounding/training/physics.py)."
+    )
     return "\n".join(lines) + "\n"
 
 
@@ -277,32 +365,46 @@ def findings(res: dict) -> list[str]:
     rf, ddpm = r.get("tuple_spline_rf"), r.get("tuple_spline_ddpm")
     cnn = [m for m in r if m.endswith("cnn")]
     if rf and ddpm:
-        out.append(f"RF vs DDPM success: {fmt(rf['success'])} vs {fmt(ddpm['success'])} "
-                   f"(RF {_cmp(rf['success'], ddpm['success'])}; the paper: RF higher).")
-        out.append(f"RF vs DDPM time: {rf['time_ms']:.3f} vs {ddpm['time_ms']:.3f} ms (RF "
-                   f"{'faster' if rf['time_ms'] < ddpm['time_ms'] else 'not faster'}; the paper: 4.87 vs 7.86 ms). Both make "
-                   "S = 50 evaluations of the same network in one compiled loop; what differs is the work around it "
-                   "(an ancestral DDPM step also draws fresh Gaussian noise), so the gap here is small, and the "
-                   "paper's larger one is not explained by the number of network calls.")
+        out.append(
+            f"RF vs DDPM success: {fmt(rf['success'])} vs {fmt(ddpm['success'])} "
+            f"(RF {_cmp(rf['success'], ddpm['success'])}; the paper: RF higher)."
+        )
+        out.append(
+            f"RF vs DDPM time: {rf['time_ms']:.3f} vs {ddpm['time_ms']:.3f} ms (RF "
+            f"{'faster' if rf['time_ms'] < ddpm['time_ms'] else 'not faster'}; the paper: 4.87 vs 7.86 ms). Both make "
+            "S = 50 evaluations of the same network in one compiled loop; what differs is the work around it "
+            "(an ancestral DDPM step also draws fresh Gaussian noise), so the gap here is small, and the "
+            "paper's larger one is not explained by the number of network calls."
+        )
     if rf and cnn:
         for m in cnn:
-            out.append(f"RF vs {methods.DISPLAY[m]} success: {fmt(rf['success'])} vs {fmt(r[m]['success'])} "
-                       f"(RF {_cmp(rf['success'], r[m]['success'])}); coverage RMS {fmt(rf['coverage'])} vs "
-                       f"{fmt(r[m]['coverage'])} (lower is better).")
+            out.append(
+                f"RF vs {methods.DISPLAY[m]} success: {fmt(rf['success'])} vs {fmt(r[m]['success'])} "
+                f"(RF {_cmp(rf['success'], r[m]['success'])}); coverage RMS {fmt(rf['coverage'])} vs "
+                f"{fmt(r[m]['coverage'])} (lower is better)."
+            )
     phys = r.get(PHYSICS_AWARE)
     if rf and phys:
         goal = "met" if phys["feasible"][0] >= 0.995 else "not met"
-        out.append(f"Physics-aware RF vs RF (every sample simulated): feasible {fmt4(phys['feasible'])} vs "
-                   f"{fmt4(rf['feasible'])} (goal >= 0.995: {goal}); success (all samples) "
-                   f"{fmt(phys['success_all_samples'])} vs {fmt(rf['success_all_samples'])} "
-                   f"({_cmp(phys['success_all_samples'], rf['success_all_samples'])}); diversity {fmt(phys['diversity'])} "
-                   f"vs {fmt(rf['diversity'])} ({_cmp(phys['diversity'], rf['diversity'])}); shape success "
-                   f"{fmt(phys['shape_success'])} vs {fmt(rf['shape_success'])}; shape diversity "
-                   f"{fmt(phys['shape_diversity_m'])} vs {fmt(rf['shape_diversity_m'])} m.")
+        out.append(
+            f"Physics-aware RF vs RF (every sample simulated): feasible {fmt4(phys['feasible'])} vs "
+            f"{fmt4(rf['feasible'])} (goal >= 0.995: {goal}); success (all samples) "
+            f"{fmt(phys['success_all_samples'])} vs {fmt(rf['success_all_samples'])} "
+            f"({_cmp(phys['success_all_samples'], rf['success_all_samples'])}); diversity {fmt(phys['diversity'])} "
+            f"vs {fmt(rf['diversity'])} ({_cmp(phys['diversity'], rf['diversity'])}); shape success "
+            f"{fmt(phys['shape_success'])} vs {fmt(rf['shape_success'])}; shape diversity "
+            f"{fmt(phys['shape_diversity_m'])} vs {fmt(rf['shape_diversity_m'])} m."
+        )
     if cnn:
-        out.append("CNN diversity: " + ", ".join(f"{methods.DISPLAY[m]} {r[m]['diversity'][0]:.4f}" for m in cnn)
-                   + (" — all 0: deterministic, as in the paper." if all(r[m]["diversity"][0] < 1e-6 for m in cnn)
-                      else " — not all 0."))
+        out.append(
+            "CNN diversity: "
+            + ", ".join(f"{methods.DISPLAY[m]} {r[m]['diversity'][0]:.4f}" for m in cnn)
+            + (
+                " — all 0: deterministic, as in the paper."
+                if all(r[m]["diversity"][0] < 1e-6 for m in cnn)
+                else " — not all 0."
+            )
+        )
     order = [m for m in methods.METHODS if m in r]
     if len(order) > 1 and res.get("per_sample_rms"):
         for t in metrics.TAUS:
@@ -312,14 +414,16 @@ def findings(res: dict) -> list[str]:
     mean_ref, oracle = res["references"].get("tuple_mean"), res["references"].get("oracle")
     tau = float(res["config"]["tau"])
     if mean_ref and oracle and rf and cnn and max(r[m]["success"][0] for m in cnn) >= rf["success"][0]:
-        out.append(f"Why the CNNs do not fail at τ = {tau} here: the mean of a tuple's 3 training realizations is "
-                   f"{mean_ref['rms'][0]:.3f} RMS from the held-out one (success {mean_ref['success'][tau][0]:.3f}), "
-                   f"a replayed realization {oracle['rms'][0]:.3f}, an RF sample {rf['rms'][0]:.3f}. Under a squared "
-                   "error to one reference the conditional mean is the best single guess, and in this library every "
-                   "realization of a tuple lies within τ of the others (oracle success "
-                   f"{oracle['success'][tau][0]:.3f}), so a regressor that learns the mean cannot fail at τ = {tau}. The "
-                   "paper's CNN failures need demonstrations whose variants lie farther apart than τ (its private "
-                   "library); ours are closer. RF's distributional advantage shows in diversity and coverage instead.")
+        out.append(
+            f"Why the CNNs do not fail at τ = {tau} here: the mean of a tuple's 3 training realizations is "
+            f"{mean_ref['rms'][0]:.3f} RMS from the held-out one (success {mean_ref['success'][tau][0]:.3f}), "
+            f"a replayed realization {oracle['rms'][0]:.3f}, an RF sample {rf['rms'][0]:.3f}. Under a squared "
+            "error to one reference the conditional mean is the best single guess, and in this library every "
+            "realization of a tuple lies within τ of the others (oracle success "
+            f"{oracle['success'][tau][0]:.3f}), so a regressor that learns the mean cannot fail at τ = {tau}. The "
+            "paper's CNN failures need demonstrations whose variants lie farther apart than τ (its private "
+            "library); ours are closer. RF's distributional advantage shows in diversity and coverage instead."
+        )
     return out
 
 
@@ -331,14 +435,48 @@ def write(res: dict, out: str) -> None:
     write_atomic(outdir / "ablation.md", md + "\n" + "\n".join(f"- {f}" for f in findings(res)) + "\n")
     buf = io.StringIO()
     w = csv.writer(buf)
-    w.writerow(["method", "success_mean", "success_std", "success_all_mean", "success_all_std", "diversity_mean",
-                "diversity_std", "rms_mean", "time_ms", "throughput_per_s", "shape_rms_m", "shape_success_mean",
-                "shape_success_std", "shape_diversity_m", "feasible_mean", "feasible_std", "simulated_samples",
-                "physics_s", "train_s"])
+    w.writerow(
+        [
+            "method",
+            "success_mean",
+            "success_std",
+            "success_all_mean",
+            "success_all_std",
+            "diversity_mean",
+            "diversity_std",
+            "rms_mean",
+            "time_ms",
+            "throughput_per_s",
+            "shape_rms_m",
+            "shape_success_mean",
+            "shape_success_std",
+            "shape_diversity_m",
+            "feasible_mean",
+            "feasible_std",
+            "simulated_samples",
+            "physics_s",
+            "train_s",
+        ]
+    )
     for m, r in res["rows"].items():
-        w.writerow([m, *r["success"], *r["success_all_samples"], *r["diversity"], r["rms"][0], r["time_ms"],
-                    r["throughput_per_s"], r["shape_rms_m"][0], *r["shape_success"], r["shape_diversity_m"][0],
-                    *r["feasible"], r["samples"], r["physics_s"], r["train_s"]])
+        w.writerow(
+            [
+                m,
+                *r["success"],
+                *r["success_all_samples"],
+                *r["diversity"],
+                r["rms"][0],
+                r["time_ms"],
+                r["throughput_per_s"],
+                r["shape_rms_m"][0],
+                *r["shape_success"],
+                r["shape_diversity_m"][0],
+                *r["feasible"],
+                r["samples"],
+                r["physics_s"],
+                r["train_s"],
+            ]
+        )
     write_atomic(outdir / "ablation.csv", buf.getvalue())
     light = {k: v for k, v in res.items() if k not in ("per_sample_rms", "samples")}
     write_atomic(outdir / "ablation.json", json.dumps(light, indent=1, default=float))
@@ -360,26 +498,40 @@ def cross_validate(cfg: AblationConfig, folds: int) -> int:
         per_fold.append(res)
         print(f"fold {k}: " + ", ".join(f"{m} {r['success'][0]:.3f}" for m, r in res["rows"].items()), flush=True)
     tau = float(cfg.tau)
-    lines = [f"{folds}-fold cross-validation (each realization held out once: {folds * 64} targets), "
-             f"{len(cfg.seeds)} seeds, {cfg.steps} steps, tau = {tau}.", "",
-             "| Method | Succ. (mean ± std over seeds, pooled over folds) | per fold |", "|---|---|---|"]
+    lines = [
+        f"{folds}-fold cross-validation (each realization held out once: {folds * 64} targets), "
+        f"{len(cfg.seeds)} seeds, {cfg.steps} steps, tau = {tau}.",
+        "",
+        "| Method | Succ. (mean ± std over seeds, pooled over folds) | per fold |",
+        "|---|---|---|",
+    ]
     pooled = {}
     for m in per_fold[0]["rows"]:
         succ = np.stack([(f["per_sample_rms"][m][:, :, 0] <= tau).mean(axis=1) for f in per_fold])  # (folds, S)
         pooled[m] = {"success": mean_std(succ.mean(axis=0)), "per_fold": [float(x) for x in succ.mean(axis=1)]}
-        lines.append(f"| {DISPLAY[m]} | {fmt(pooled[m]['success'])} | "
-                     + ", ".join(f"{x:.3f}" for x in pooled[m]["per_fold"]) + " |")
+        lines.append(
+            f"| {DISPLAY[m]} | {fmt(pooled[m]['success'])} | "
+            + ", ".join(f"{x:.3f}" for x in pooled[m]["per_fold"])
+            + " |"
+        )
     for name, label in REFERENCES:
         vals = [f["references"][name]["success"][tau][0] for f in per_fold if name in f["references"]]
         if vals:
-            lines.append(f"| {label} | {np.mean(vals):.3f} ± {np.std(vals):.3f} (over folds) | "
-                         + ", ".join(f"{x:.3f}" for x in vals) + " |")
+            lines.append(
+                f"| {label} | {np.mean(vals):.3f} ± {np.std(vals):.3f} (over folds) | "
+                + ", ".join(f"{x:.3f}" for x in vals)
+                + " |"
+            )
     run_s = time.perf_counter() - t0
     lines += ["", f"Run time: {run_s:.0f} s on {per_fold[0]['machine']}."]
     text = "\n".join(lines) + "\n"
     write_atomic(Path(cfg.out) / "ablation_folds.md", text)
-    write_atomic(Path(cfg.out) / "ablation_folds.json", json.dumps(
-        {"config": dataclasses.asdict(cfg), "folds": folds, "rows": pooled, "run_s": run_s}, indent=1, default=float))
+    write_atomic(
+        Path(cfg.out) / "ablation_folds.json",
+        json.dumps(
+            {"config": dataclasses.asdict(cfg), "folds": folds, "rows": pooled, "run_s": run_s}, indent=1, default=float
+        ),
+    )
     print(text)
     print(f"{folds}-fold cross-validation run time: {run_s:.0f} s")
     return 0
@@ -394,11 +546,21 @@ def main(argv=None) -> int:
     p.add_argument("--methods", help=f"comma-separated subset of {','.join(methods.METHODS)}")
     p.add_argument("--engine", choices=sim.ENGINES, help="trunk engine of the physics columns (default auto)")
     p.add_argument("--no-physics-aware", action="store_true", help="skip the physics-aware RF row")
-    p.add_argument("--devices", type=int, help="devices of the mesh (0 = all; default 1 = no mesh); see docs/distributed.md")
-    p.add_argument("--library", help="library .npz to run Table II on (default: the shipped one), e.g. imported "
-                   "with python -m jgrounding.library import; results go to results/<its name> unless --out")
-    p.add_argument("--folds", type=int, choices=(4,), help="4-fold cross-validation: each realization held out once "
-                   "(256 targets); writes <out>/ablation_folds.{md,json}")
+    p.add_argument(
+        "--devices", type=int, help="devices of the mesh (0 = all; default 1 = no mesh); see docs/distributed.md"
+    )
+    p.add_argument(
+        "--library",
+        help="library .npz to run Table II on (default: the shipped one), e.g. imported "
+        "with python -m jgrounding.library import; results go to results/<its name> unless --out",
+    )
+    p.add_argument(
+        "--folds",
+        type=int,
+        choices=(4,),
+        help="4-fold cross-validation: each realization held out once "
+        "(256 targets); writes <out>/ablation_folds.{md,json}",
+    )
     args = p.parse_args(argv)
     cfg = AblationConfig(**QUICK) if args.quick else AblationConfig()
     if args.seeds:
@@ -436,8 +598,10 @@ def main(argv=None) -> int:
     print(markdown(res))
     for f in findings(res):
         print("-", f)
-    print(f"\nphysics (every sample simulated, engine {res['physics_engine']}): {res['physics_s']:.0f} s of the run's "
-          f"{res['run_s']:.0f} s ({100 * res['physics_s'] / res['run_s']:.0f}%)")
+    print(
+        f"\nphysics (every sample simulated, engine {res['physics_engine']}): {res['physics_s']:.0f} s of the run's "
+        f"{res['run_s']:.0f} s ({100 * res['physics_s'] / res['run_s']:.0f}%)"
+    )
     print(f"wrote {cfg.out}/ablation.{{md,csv,json}} in {time.perf_counter() - t0:.0f} s")
     return 0
 

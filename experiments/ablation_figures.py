@@ -5,6 +5,7 @@
   method beside the reference's (side view x-z and front view y-z).
 - ``results/diversity.png``: 30 samples of one tuple overlaid for RF, DDPM and the spline CNN.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,12 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import sim
-from jgrounding.sim import model as sim_model
-
-from jgrounding.generators import methods
-
-from jgrounding.evaluation import metrics
 from jgrounding.apps.plotting import TENDON_COLORS, plot_tendons, plt, save
+from jgrounding.evaluation import metrics
+from jgrounding.generators import methods
+from jgrounding.sim import model as sim_model
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 FIG4_TUPLES = (("embracing", "emphatic"), ("withdrawal", "moderate"))
@@ -37,8 +36,9 @@ def _posture(ax, backbone, plane: tuple[int, int], **kw):
 def fig4(samples: dict[str, np.ndarray], lib, path: Path) -> str:
     """``samples[method]``: ``(64, K, 150, 4)`` of seed 0."""
     names = [m for m in methods.METHODS if m in samples]
-    fig, axes = plt.subplots(len(FIG4_TUPLES), len(names) + 2, figsize=(3.0 * (len(names) + 2), 2.9 * len(FIG4_TUPLES)),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        len(FIG4_TUPLES), len(names) + 2, figsize=(3.0 * (len(names) + 2), 2.9 * len(FIG4_TUPLES)), squeeze=False
+    )
     for row, (intent, intensity) in enumerate(FIG4_TUPLES):
         j = heldout_index(lib, intent, intensity)
         ref = lib.heldout.u[j]
@@ -51,7 +51,9 @@ def fig4(samples: dict[str, np.ndarray], lib, path: Path) -> str:
                 ax.set_ylabel("")
         axes[row, 0].set_ylabel(f"{intent} / {intensity}\ntendon pull u", fontsize=8)
         final = sim.rollout(np.concatenate([ref[None], u])).backbone[:, -1]  # final postures (1 + M, 11, 3)
-        for k, (plane, label) in enumerate((((0, 2), "side view: x (toward user) [m]"), ((1, 2), "front view: y (left) [m]"))):
+        for k, (plane, label) in enumerate(
+            (((0, 2), "side view: x (toward user) [m]"), ((1, 2), "front view: y (left) [m]"))
+        ):
             ax = axes[row, len(names) + k]
             _posture(ax, final[0], plane, color="k", ls="--", lw=2, label="library reference")
             for i, m in enumerate(names):

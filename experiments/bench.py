@@ -3,6 +3,7 @@
 Each sub-command lives in its own module (`experiments/bench_<name>.py`) with a `main(argv)`;
 every figure is printed beside its reference in the same run, as a ratio.
 """
+
 from __future__ import annotations
 
 import importlib

@@ -6,6 +6,7 @@ extreme key words), random ``num_samples`` and sampler settings — until at lea
 trajectories came back. Every one must have the right shape and be finite, inside [0, 1] and
 slew-limited; the counts are printed (and written to results/bench_fuzz.md).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,8 +21,17 @@ from jgrounding import safety
 from jgrounding.io import write_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
-CONFIGS = (("euler", 50), ("euler", 1), ("euler", 2), ("euler", 4), ("midpoint", 2), ("midpoint", 4), ("rk4", 1),
-           ("rk4", 2), ("euler", 8))
+CONFIGS = (
+    ("euler", 50),
+    ("euler", 1),
+    ("euler", 2),
+    ("euler", 4),
+    ("midpoint", 2),
+    ("midpoint", 4),
+    ("rk4", 1),
+    ("rk4", 2),
+    ("euler", 8),
+)
 WORDS = (0, 1, 2**31, 2**32 - 1)
 
 
@@ -68,8 +78,11 @@ def fuzz(seed: int, trajectories: int, max_per_call: int = 4096, progress: bool 
         else:
             n = int(rng.integers(1, max(2, max_per_call // k) + 1))
             intent = [_value(rng, jg.INTENTS) for _ in range(n)] if rng.random() < 0.9 else _value(rng, jg.INTENTS)
-            intensity = [_value(rng, jg.INTENSITIES) for _ in range(n)] if rng.random() < 0.9 or not isinstance(
-                intent, list) else _value(rng, jg.INTENSITIES)
+            intensity = (
+                [_value(rng, jg.INTENSITIES) for _ in range(n)]
+                if rng.random() < 0.9 or not isinstance(intent, list)
+                else _value(rng, jg.INTENSITIES)
+            )
             shape = (n, k, 150, 4)
         u = jg.sample(_key(rng), intent, intensity, num_samples=k, sampler=sampler, steps=steps)
         if u.shape != shape or u.dtype != np.float32:
@@ -91,9 +104,11 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     c = fuzz(args.seed, args.trajectories, progress=True)
     dt = time.perf_counter() - t0
-    text = (f"Fuzzed jg.sample: {c['calls']:,} random calls, {c['trajectories']:,} trajectories "
-            f"({len(c['configs'])} sampler settings, seed {args.seed}) in {dt:.0f} s: {c['bad']} out of bounds, "
-            f"non-finite or over the slew bound.")
+    text = (
+        f"Fuzzed jg.sample: {c['calls']:,} random calls, {c['trajectories']:,} trajectories "
+        f"({len(c['configs'])} sampler settings, seed {args.seed}) in {dt:.0f} s: {c['bad']} out of bounds, "
+        f"non-finite or over the slew bound."
+    )
     print(text)
     write_atomic(ROOT / "results" / "bench_fuzz.md", text + "\n")
     return 1 if c["bad"] else 0

@@ -8,6 +8,7 @@ the forced host devices share the same cores, so no gain is expected on a small 
 shows that the sharded path runs and returns the same trajectories. ``--real`` instead measures this
 machine's own devices (e.g. the GPUs of one node) in one process: a mesh of 1 device vs all of them.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,12 +30,8 @@ def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
     import numpy as np
 
     from jgrounding import load_library
-
+    from jgrounding.generators import methods, sampling
     from jgrounding.training import distributed
-
-    from jgrounding.generators import methods
-
-    from jgrounding.generators import sampling
 
     trained, emb = sampling.load()
     lib = load_library()
@@ -45,8 +42,9 @@ def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
         mesh = distributed.make_mesh(size)
 
         def run(i):
-            return methods.generate(trained, cond, intensity, jax.random.key(i), num_samples=NUM_SAMPLES,
-                                    batch=total, mesh=mesh)
+            return methods.generate(
+                trained, cond, intensity, jax.random.key(i), num_samples=NUM_SAMPLES, batch=total, mesh=mesh
+            )
 
         u = run(0)  # compile
         times = []
@@ -55,18 +53,38 @@ def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
             run(i)
             times.append(time.perf_counter() - t0)
         dt = float(np.median(times))
-        rows.append({"devices": size, "platform": jax.devices()[0].platform, "trajectories": total,
-                     "seconds": dt, "per_s": total / dt})
+        rows.append(
+            {
+                "devices": size,
+                "platform": jax.devices()[0].platform,
+                "trajectories": total,
+                "seconds": dt,
+                "per_s": total / dt,
+            }
+        )
         if dump:
             np.save(f"{dump}-{size}.npy", u)
     return rows
 
 
 def _forced(devices: int, reps: int, dump: str) -> dict:
-    env = {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(ROOT),
-           "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={devices}".strip()}
-    cmd = [sys.executable, "-m", "experiments.bench_shard", "--worker", str(devices), "--reps", str(reps),
-           "--dump", dump]
+    env = {
+        **os.environ,
+        "JAX_PLATFORMS": "cpu",
+        "PYTHONPATH": str(ROOT),
+        "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={devices}".strip(),
+    }
+    cmd = [
+        sys.executable,
+        "-m",
+        "experiments.bench_shard",
+        "--worker",
+        str(devices),
+        "--reps",
+        str(reps),
+        "--dump",
+        dump,
+    ]
     out = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True)
     if out.returncode:
         raise RuntimeError(f"worker with {devices} device(s) failed:\n{out.stderr[-3000:]}")
@@ -110,16 +128,25 @@ def main(argv=None) -> int:
         diffs = {n: float(np.abs(np.load(f"{dump}-{n}.npy") - base_u).max()) for n in counts}
     base = rows[0]["per_s"]
     kind = "own devices" if args.real else "forced host devices, one process each"
-    lines = [f"Sharded evaluation ({kind}): 64 held-out tuples x {NUM_SAMPLES} samples, RF Euler S = 50, "
-             f"shipped checkpoint; median of {args.reps}; load average {os.getloadavg()[0]:.2f} on "
-             f"{os.cpu_count()} cores.", "",
-             "| devices | platform | time per batch | trajectories/s | ratio vs 1st | max abs diff vs 1st |",
-             "|---|---|---|---|---|---|"]
-    lines += [f"| {r['devices']} | {r['platform']} | {1e3 * r['seconds']:.1f} ms | {r['per_s']:,.0f} | "
-              f"{r['per_s'] / base:.2f}x | {diffs[r['devices']]:.1e} |" for r in rows]
+    lines = [
+        f"Sharded evaluation ({kind}): 64 held-out tuples x {NUM_SAMPLES} samples, RF Euler S = 50, "
+        f"shipped checkpoint; median of {args.reps}; load average {os.getloadavg()[0]:.2f} on "
+        f"{os.cpu_count()} cores.",
+        "",
+        "| devices | platform | time per batch | trajectories/s | ratio vs 1st | max abs diff vs 1st |",
+        "|---|---|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r['devices']} | {r['platform']} | {1e3 * r['seconds']:.1f} ms | {r['per_s']:,.0f} | "
+        f"{r['per_s'] / base:.2f}x | {diffs[r['devices']]:.1e} |"
+        for r in rows
+    ]
     if not args.real:
-        lines += ["", "Forced host devices share the same CPU cores, so no speed-up is expected here; the "
-                  "table shows the sharded path runs and matches the single-device trajectories."]
+        lines += [
+            "",
+            "Forced host devices share the same CPU cores, so no speed-up is expected here; the "
+            "table shows the sharded path runs and matches the single-device trajectories.",
+        ]
     text = "\n".join(lines)
     print(text)
     from jgrounding.io import write_atomic

@@ -13,6 +13,7 @@ ablation calls), which engine ``"auto"`` picks here, and the share of ``make abl
 takes: measured, from the last run's results/ablation.json, and predicted from this rate.
 Writes results/bench_trunk.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,9 +33,11 @@ from jgrounding.sim import mjx as trunk_mjx
 from jgrounding.sim import model as tm
 
 ROOT = Path(__file__).resolve().parent.parent
-_CACHED = ("import sys, time, numpy as np; from jgrounding.sim import mjx as trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
-           "u = np.zeros((int(sys.argv[2]), 150, 4)); t = time.perf_counter(); "
-           "trunk_mjx.rollout_mjx(u, True, chunk=int(sys.argv[2])); print(time.perf_counter() - t - float(sys.argv[3]))")
+_CACHED = (
+    "import sys, time, numpy as np; from jgrounding.sim import mjx as trunk_mjx; trunk_mjx.enable_compilation_cache(sys.argv[1]); "
+    "u = np.zeros((int(sys.argv[2]), 150, 4)); t = time.perf_counter(); "
+    "trunk_mjx.rollout_mjx(u, True, chunk=int(sys.argv[2])); print(time.perf_counter() - t - float(sys.argv[3]))"
+)
 
 
 def _first_and_warm(u, chunk):
@@ -81,8 +84,12 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what)
     ("no contact pairs, single step", "0", "0", "step"),
     (f"{tm.CONTACT_SEGMENTS} pairs (shipped model), single step", "1", str(tm.CONTACT_SEGMENTS), "step"),
     ("no contact pairs, vmap(64) of a scan of 4 substeps", "0", "0", "scan"),
-    (f"{tm.CONTACT_SEGMENTS} pairs (shipped model), vmap(64) of a scan of 4 substeps", "1", str(tm.CONTACT_SEGMENTS),
-     "scan"),
+    (
+        f"{tm.CONTACT_SEGMENTS} pairs (shipped model), vmap(64) of a scan of 4 substeps",
+        "1",
+        str(tm.CONTACT_SEGMENTS),
+        "scan",
+    ),
     (f"{tm.NUM_SEGMENTS} pairs (every segment), vmap(64) of a scan of 4 substeps", "1", str(tm.NUM_SEGMENTS), "scan"),
 )
 
@@ -90,8 +97,13 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what)
 def compile_probe() -> list[str]:
     lines = ["| MJX model variant | trace + lower (s) | XLA compile (s) | warm physics steps/s |", "|---|---|---|---|"]
     for label, contact, pairs, what in COMPILE_VARIANTS:
-        out = subprocess.run([sys.executable, "-c", _PROBE, contact, pairs, what], capture_output=True, text=True,
-                             cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+        out = subprocess.run(
+            [sys.executable, "-c", _PROBE, contact, pairs, what],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )
         trace, comp, rate = (float(x) for x in out.stdout.split()[-3:]) if out.returncode == 0 else (float("nan"),) * 3
         lines.append(f"| {label} | {trace:.1f} | {comp:.1f} | {rate:,.0f} |")
         print(lines[-1], flush=True)
@@ -106,8 +118,10 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.compile:
         lines = compile_probe()
-        lines.append(f"\nCold compiles, no persistent cache, {os.cpu_count()} CPU cores, load average "
-                     f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.sim.mjx.")
+        lines.append(
+            f"\nCold compiles, no persistent cache, {os.cpu_count()} CPU cores, load average "
+            f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.sim.mjx."
+        )
         write_atomic(ROOT / "results" / "bench_trunk_compile.md", "\n".join(lines) + "\n")
         return 0
     lib = load_library()
@@ -122,12 +136,19 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as cache:
         trunk_mjx.enable_compilation_cache(cache)
         first, run = _first_and_warm(pool[: args.chunk], args.chunk)
-        out = subprocess.run([sys.executable, "-c", _CACHED, cache, str(args.chunk), str(run)], capture_output=True,
-                             text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+        out = subprocess.run(
+            [sys.executable, "-c", _CACHED, cache, str(args.chunk), str(run)],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )
         cached = float(out.stdout.split()[-1]) if out.returncode == 0 else float("nan")
-    say(f"MJX batched rollout (chunk {args.chunk}, 150 control steps x {sim.SUBSTEPS} substeps): compile "
+    say(
+        f"MJX batched rollout (chunk {args.chunk}, 150 control steps x {sim.SUBSTEPS} substeps): compile "
         f"{first - run:.1f} s cold (first call {first:.1f} s minus a warm call {run:.1f} s); "
-        f"{cached:.1f} s in a fresh process with the persistent compilation cache filled (trace + cache load).")
+        f"{cached:.1f} s in a fresh process with the persistent compilation cache filled (trace + cache load)."
+    )
     say("")
     say("| B | native steps/s | MJX steps/s | MJX / native | max tip gap MJX vs native |")
     say("|---|---|---|---|---|")
@@ -142,9 +163,11 @@ def main(argv=None) -> int:
         gap = float(np.linalg.norm(got.tip - ref.tip, axis=-1).max())
         say(f"| {b} | {native:,.0f} | {mjx:,.0f} | {mjx / native:.3f}x | {1e3 * gap:.2f} mm |")
     say("")
-    say(f"{os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
+    say(
+        f"{os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
         f"core; MJX = jax on CPU, float32, every batch run as padded chunks of {args.chunk} (so B = 64 does a chunk's "
-        "work: one compiled program serves every B). Commands: library trajectories, repeated to fill B.")
+        "work: one compiled program serves every B). Commands: library trajectories, repeated to fill B."
+    )
     ablation_throughput(pool, say)
     screening_latency(say)
     write_atomic(ROOT / "results" / "bench_trunk.md", "\n".join(lines) + "\n")
@@ -158,8 +181,10 @@ def screening_latency(say, reps: int = 20) -> None:
     from jgrounding.generators import sampling
 
     say("")
-    say("| public call (warm, median of %d) | plain ms | screened ms | screened / plain | candidates simulated per "
-        "call | rejected |" % reps)
+    say(
+        "| public call (warm, median of %d) | plain ms | screened ms | screened / plain | candidates simulated per "
+        "call | rejected |" % reps
+    )
     say("|---|---|---|---|---|---|")
     for k in (1, 8):
         args = ("nodding", "emphatic")
@@ -176,14 +201,25 @@ def screening_latency(say, reps: int = 20) -> None:
             screened.append(time.perf_counter() - t0)
             cands, rejected = cands + res.candidates, rejected + res.rejected
         p, s = 1e3 * np.median(plain), 1e3 * np.median(screened)
-        say(f"| jg.sample(key, {args[0]!r}, {args[1]!r}, num_samples={k}) | {p:.2f} | {s:.2f} | {s / p:.0f}x | "
-            f"{cands / reps:.1f} | {rejected / reps:.2f} |")
-    say("Screened: candidates drawn, rolled out in one batch (engine auto), infeasible ones dropped and redrawn; "
-        "the cost is the simulation of 5 s of motion per candidate.")
+        say(
+            f"| jg.sample(key, {args[0]!r}, {args[1]!r}, num_samples={k}) | {p:.2f} | {s:.2f} | {s / p:.0f}x | "
+            f"{cands / reps:.1f} | {rejected / reps:.2f} |"
+        )
+    say(
+        "Screened: candidates drawn, rolled out in one batch (engine auto), infeasible ones dropped and redrawn; "
+        "the cost is the simulation of 5 s of motion per candidate."
+    )
 
 
-def ablation_rollouts(k_div: int = 30, seeds: int = 5, deterministic: int = 3, generative: int = 3,
-                      candidates: int | None = None, library: int = 256, references: int = 3 * 64) -> int:
+def ablation_rollouts(
+    k_div: int = 30,
+    seeds: int = 5,
+    deterministic: int = 3,
+    generative: int = 3,
+    candidates: int | None = None,
+    library: int = 256,
+    references: int = 3 * 64,
+) -> int:
     """Distinct trajectories ``make ablation`` simulates with its defaults: every sample of the generative
     rows (DDPM, RF, physics-aware RF), one per tuple for the deterministic CNNs (their K_div copies are
     identical and simulated once), the physics-aware fine-tuning's screened candidates, the library once
@@ -205,8 +241,10 @@ def ablation_throughput(pool, say, k_div: int = 30) -> None:
     u += np.random.default_rng(0).uniform(0, 1e-4, u.shape) * (u < 1 - 1e-4)  # distinct: no rollout is deduplicated
     ref = sim.rollout(pool[:64]).backbone
     say("")
-    say(f"Physics columns of the ablation: one batch = K_div x 64 = {batch:,} trajectories per method and seed "
-        f"(engine \"auto\" picks {sim.resolve_engine('auto')} on this machine).")
+    say(
+        f"Physics columns of the ablation: one batch = K_div x 64 = {batch:,} trajectories per method and seed "
+        f'(engine "auto" picks {sim.resolve_engine("auto")} on this machine).'
+    )
     say("")
     say(f"| engine | trajectories/s | s per batch of {batch:,} |")
     say("|---|---|---|")
@@ -223,8 +261,10 @@ def ablation_throughput(pool, say, k_div: int = 30) -> None:
     path = ROOT / "results" / "ablation.json"
     last = json.loads(path.read_text()) if path.exists() else {}
     if "physics_s" in last and "run_s" in last:
-        say(f"Last ablation run (results/ablation.json, {last.get('date', '?')}): physics {last['physics_s']:.0f} s of "
-            f"{last['run_s']:.0f} s ({100 * last['physics_s'] / last['run_s']:.0f}%), engine {last.get('physics_engine')}.")
+        say(
+            f"Last ablation run (results/ablation.json, {last.get('date', '?')}): physics {last['physics_s']:.0f} s of "
+            f"{last['run_s']:.0f} s ({100 * last['physics_s'] / last['run_s']:.0f}%), engine {last.get('physics_engine')}."
+        )
     else:
         say("results/ablation.json predates the physics timing; run `make ablation` to measure physics' share.")
 

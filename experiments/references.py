@@ -6,17 +6,21 @@ wrong intent (same intensity), far intensity (same intent, 2+ levels away), adja
 the share of held-out word 4-grams found in same-intent training responses. SPEC §3 ranges at
 tau = 0.35 are checked and printed.
 """
+
 from __future__ import annotations
 
 import argparse
 
 from jgrounding import library, load_library
-
 from jgrounding.evaluation import metrics
 
-NAMES = {"oracle": "oracle (same-tuple replay)", "tuple_mean": "tuple mean (regressor ceiling)",
-         "wrong_intent": "wrong intent, same intensity", "far_intensity": "same intent, 2+ intensity levels away",
-         "adjacent_intensity": "same intent, adjacent intensity"}
+NAMES = {
+    "oracle": "oracle (same-tuple replay)",
+    "tuple_mean": "tuple mean (regressor ceiling)",
+    "wrong_intent": "wrong intent, same intensity",
+    "far_intensity": "same intent, 2+ intensity levels away",
+    "adjacent_intensity": "same intent, adjacent intensity",
+}
 
 
 def table(b: dict, taus=metrics.TAUS) -> str:
@@ -36,8 +40,10 @@ def main(argv=None) -> int:
     print(f"held-out word 4-grams shared with same-intent training responses: {b['heldout_4gram_overlap']:.3f}")
     mid = library.variant_midpoint(lib, metrics.TAUS)
     if mid:
-        print(f"beside the brackets — a hedge on the {mid['tuples']} one-to-many tuples (midpoint of the two variants' "
-              "training means): " + ", ".join(f"succ@{t:.2f} {v:.3f}" for t, v in mid["success"].items()))
+        print(
+            f"beside the brackets — a hedge on the {mid['tuples']} one-to-many tuples (midpoint of the two variants' "
+            "training means): " + ", ".join(f"succ@{t:.2f} {v:.3f}" for t, v in mid["success"].items())
+        )
     bad = library.bracket_violations(b, metrics.TAU_RMS)
     print(f"brackets at tau = {metrics.TAU_RMS}: " + ("all within the SPEC §3 ranges" if not bad else "; ".join(bad)))
     return 0 if not bad else 1

@@ -6,6 +6,7 @@ the 2-rectified flow of it into assets/checkpoints/tuple_spline_rf_reflow when t
 serves few steps best, and writes assets/checkpoints/shipped.json, which ``jg.sample(..., steps=S)``
 reads to pick the checkpoint for S. Prints every command it runs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,15 +24,45 @@ DEFAULT, REFLOW = "tuple_spline_rf", "tuple_spline_rf_reflow"
 def commands(sweep: dict) -> tuple[list[list[str]], dict]:
     """(argv lists of ``experiments.train``, the shipped.json manifest) for the sweep's choice."""
     choice, cfg = sweep["choice"], sweep["choice"]["default"]["config"]
-    options = ["--steps", str(sweep["steps"]), "--ema-decay", str(cfg["ema_decay"]), "--time-sampler",
-               cfg["time_sampler"]]
-    default = ["--method", DEFAULT, "--seeds", "0", "--out", str(CKPT / DEFAULT), *options, "--condition-dropout",
-               str(cfg["condition_dropout"]), "--guidance", str(choice["default"]["guidance"])]
+    options = [
+        "--steps",
+        str(sweep["steps"]),
+        "--ema-decay",
+        str(cfg["ema_decay"]),
+        "--time-sampler",
+        cfg["time_sampler"],
+    ]
+    default = [
+        "--method",
+        DEFAULT,
+        "--seeds",
+        "0",
+        "--out",
+        str(CKPT / DEFAULT),
+        *options,
+        "--condition-dropout",
+        str(cfg["condition_dropout"]),
+        "--guidance",
+        str(choice["default"]["guidance"]),
+    ]
     runs, manifest = [default], {"default": DEFAULT, "few_step": [], "chosen_by": "results/sweep_training.json"}
     reflow_steps = [int(s) for s, v in choice["few_step"].items() if v["run"].startswith("2-rectified")]
     if reflow_steps:
-        runs.append(["--method", DEFAULT, "--seeds", "0", "--out", str(CKPT / REFLOW), *options,
-                     "--reflow-from", str(CKPT / DEFAULT), "--reflow-pairs", str(sweep["reflow_pairs"])])
+        runs.append(
+            [
+                "--method",
+                DEFAULT,
+                "--seeds",
+                "0",
+                "--out",
+                str(CKPT / REFLOW),
+                *options,
+                "--reflow-from",
+                str(CKPT / DEFAULT),
+                "--reflow-pairs",
+                str(sweep["reflow_pairs"]),
+            ]
+        )
         # the reflowed model serves every S up to the largest at which it won, unless the default won below it
         won = sorted(int(s) for s in choice["few_step"])
         top = 0

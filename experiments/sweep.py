@@ -9,10 +9,10 @@
   DDPM/DDIM), 5 seeds; chooses the shipped default (experiments/sweep_training.py).
 Each writes results/sweep_<name>.{md,json} and a PNG.
 """
+
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -21,14 +21,11 @@ import jax
 import numpy as np
 
 from jgrounding import load_library, semantics
-
-from jgrounding.generators import methods
-
-from jgrounding.evaluation import latency, metrics
-
 from jgrounding.actuation import splines
-from jgrounding.io import write_atomic
 from jgrounding.apps.plotting import plt, save
+from jgrounding.evaluation import latency, metrics
+from jgrounding.generators import methods
+from jgrounding.io import write_atomic
 from jgrounding.training import TrainConfig
 
 SWEEPS = ("tau_rms", "steps", "controls", "training")
@@ -53,25 +50,39 @@ def sweep_tau(args) -> dict:
     verdicts = {t: metrics.ordering({m: table[m][t][0] for m in order}, order) for t in taus}
     lines = ["| Method | " + " | ".join(f"τ={t:.2f}" for t in taus) + " |", "|---" * (len(taus) + 1) + "|"]
     for m in order:
-        lines.append(f"| {methods.DISPLAY[m]} | " + " | ".join(f"{table[m][t][0]:.3f} ± {table[m][t][1]:.3f}"
-                                                             for t in taus) + " |")
-    lines += ["", "Success of one sample per held-out tuple, mean ± std over seeds. τ = 0.25–0.45 is the paper's "
-              "range; 0.05–0.20 is added to find where the methods separate on this library. The paper's ordering, "
-              "worst to best: " + " < ".join(methods.DISPLAY[m] for m in order) + "."]
+        lines.append(
+            f"| {methods.DISPLAY[m]} | "
+            + " | ".join(f"{table[m][t][0]:.3f} ± {table[m][t][1]:.3f}" for t in taus)
+            + " |"
+        )
+    lines += [
+        "",
+        "Success of one sample per held-out tuple, mean ± std over seeds. τ = 0.25–0.45 is the paper's "
+        "range; 0.05–0.20 is added to find where the methods separate on this library. The paper's ordering, "
+        "worst to best: " + " < ".join(methods.DISPLAY[m] for m in order) + ".",
+    ]
     lines += [f"- τ = {t:.2f}: ordering {v} ({chain})" for t, (v, chain) in verdicts.items()]
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     for m in order:
-        ax.errorbar(taus, [table[m][t][0] for t in taus], [table[m][t][1] for t in taus],
-                    label=methods.DISPLAY[m], marker="o", capsize=3)
+        ax.errorbar(
+            taus,
+            [table[m][t][0] for t in taus],
+            [table[m][t][1] for t in taus],
+            label=methods.DISPLAY[m],
+            marker="o",
+            capsize=3,
+        )
     ax.axvline(0.35, color="k", ls=":", lw=1)
     ax.axvspan(metrics.TAUS[0], metrics.TAUS[-1], color="k", alpha=0.05, label="paper's range")
     ax.set_xlabel("τ_rms")
     ax.set_ylabel("held-out success")
     ax.legend(fontsize=7)
     save(fig, RESULTS / "sweep_tau_rms.png")
-    return {"table": {m: {str(t): v for t, v in d.items()} for m, d in table.items()},
-            "ordering": {str(t): {"verdict": v, "chain": c} for t, (v, c) in verdicts.items()},
-            "markdown": "\n".join(lines)}
+    return {
+        "table": {m: {str(t): v for t, v in d.items()} for m, d in table.items()},
+        "ordering": {str(t): {"verdict": v, "chain": c} for t, (v, c) in verdicts.items()},
+        "markdown": "\n".join(lines),
+    }
 
 
 def mean_std(x):
@@ -83,15 +94,18 @@ def _eval(trained, lib, cond, key, k_div, steps, sampler="euler"):
     u = methods.generate(trained, cond, lib.heldout.intensity, key, num_samples=k_div, steps=steps, sampler=sampler)
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
-    ms = latency.latency_ms(trained, lib.heldout.intent, lib.heldout.intensity, key, cond=cond, steps=steps,
-                            sampler=sampler)
+    ms = latency.latency_ms(
+        trained, lib.heldout.intent, lib.heldout.intensity, key, cond=cond, steps=steps, sampler=sampler
+    )
     return mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), mean_std(div), ms
 
 
 STEP_RUNS = (  # (method, sampler, S); network evaluations per sample = S x evals per step
     *(("tuple_spline_rf", "euler", s) for s in (1, 2, 4, 8, 16, 50)),
-    ("tuple_spline_rf", "midpoint", 2), ("tuple_spline_rf", "rk4", 1),  # 4 evaluations, like Euler S = 4
-    *(("tuple_spline_ddpm", "ddim", s) for s in (1, 2, 4, 8, 16)), ("tuple_spline_ddpm", "ancestral", 50),
+    ("tuple_spline_rf", "midpoint", 2),
+    ("tuple_spline_rf", "rk4", 1),  # 4 evaluations, like Euler S = 4
+    *(("tuple_spline_ddpm", "ddim", s) for s in (1, 2, 4, 8, 16)),
+    ("tuple_spline_ddpm", "ancestral", 50),
 )
 EVALS_PER_STEP = {"euler": 1, "midpoint": 2, "rk4": 4, "ddim": 1, "ancestral": 1}
 
@@ -104,21 +118,34 @@ def sweep_steps(args) -> dict:
         if method not in trained:
             trained[method] = load_trained(method)
         succ, div, ms = _eval(trained[method], lib, cond, jax.random.key(s), args.k_div, s, sampler)
-        rows[f"{method}/{sampler}/S={s}"] = {"success": succ, "diversity": div, "time_ms": ms, "sampler": sampler,
-                                            "evals": s * EVALS_PER_STEP[sampler]}
-        print(f"{methods.DISPLAY[method]:24s} {sampler:9s} S={s:2d} success {succ[0]:.3f} ± {succ[1]:.3f}  "
-              f"div {div[0]:.3f} ± {div[1]:.3f}  time {ms:.3f} ms", flush=True)
+        rows[f"{method}/{sampler}/S={s}"] = {
+            "success": succ,
+            "diversity": div,
+            "time_ms": ms,
+            "sampler": sampler,
+            "evals": s * EVALS_PER_STEP[sampler],
+        }
+        print(
+            f"{methods.DISPLAY[method]:24s} {sampler:9s} S={s:2d} success {succ[0]:.3f} ± {succ[1]:.3f}  "
+            f"div {div[0]:.3f} ± {div[1]:.3f}  time {ms:.3f} ms",
+            flush=True,
+        )
     lines = ["| Method | sampler | S | network evals | Succ. | Div. | Time (ms) |", "|---|---|---|---|---|---|---|"]
     for k, r in rows.items():
         m, sampler, s = k.split("/")
-        lines.append(f"| {methods.DISPLAY[m]} | {sampler} | {s[2:]} | {r['evals']} | {r['success'][0]:.3f} ± "
-                     f"{r['success'][1]:.3f} | {r['diversity'][0]:.3f} ± {r['diversity'][1]:.3f} | {r['time_ms']:.3f} |")
+        lines.append(
+            f"| {methods.DISPLAY[m]} | {sampler} | {s[2:]} | {r['evals']} | {r['success'][0]:.3f} ± "
+            f"{r['success'][1]:.3f} | {r['diversity'][0]:.3f} ± {r['diversity'][1]:.3f} | {r['time_ms']:.3f} |"
+        )
     base = rows["tuple_spline_rf/euler/S=50"]["success"][0]
     few = {k: r["success"][0] for k, r in rows.items() if k.startswith("tuple_spline_rf") and r["evals"] <= 4}
     worst = min(few, key=few.get)
-    lines += ["", f"Few-step RF (<= 4 network evaluations): worst success {few[worst]:.3f} ({worst}) vs {base:.3f} at "
-              f"Euler S = 50: {'within' if base - few[worst] <= 0.02 else 'NOT within'} 2 points, so no reflow or "
-              "distillation was needed on this library. Seeds and checkpoints: runs/ablation (make ablation)."]
+    lines += [
+        "",
+        f"Few-step RF (<= 4 network evaluations): worst success {few[worst]:.3f} ({worst}) vs {base:.3f} at "
+        f"Euler S = 50: {'within' if base - few[worst] <= 0.02 else 'NOT within'} 2 points, so no reflow or "
+        "distillation was needed on this library. Seeds and checkpoints: runs/ablation (make ablation).",
+    ]
     return {"rows": rows, "markdown": "\n".join(lines)}
 
 
@@ -130,18 +157,28 @@ def sweep_controls(args) -> dict:
     for p in range(3, 9):
         trained = methods.train("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), num_controls=p)
         succ, div, ms = _eval(trained, lib, cond, jax.random.key(p), args.k_div, 50)
-        fit_err = float(np.sqrt(((np.asarray(splines.reconstruct(splines.fit(lib.heldout.u, p))) - lib.heldout.u) ** 2).mean()))
+        fit_err = float(
+            np.sqrt(((np.asarray(splines.reconstruct(splines.fit(lib.heldout.u, p))) - lib.heldout.u) ** 2).mean())
+        )
         rows[p] = {"success": succ, "diversity": div, "time_ms": ms, "library_fit_rms": fit_err}
-        print(f"P={p}: success {succ[0]:.3f} ± {succ[1]:.3f}  div {div[0]:.3f}  time {ms:.3f} ms  "
-              f"fit RMS of the library {fit_err:.4f}", flush=True)
+        print(
+            f"P={p}: success {succ[0]:.3f} ± {succ[1]:.3f}  div {div[0]:.3f}  time {ms:.3f} ms  "
+            f"fit RMS of the library {fit_err:.4f}",
+            flush=True,
+        )
     lines = ["| P | Succ. | Div. | Time (ms) | library fit RMS |", "|---|---|---|---|---|"]
     for p, r in rows.items():
-        lines.append(f"| {p} | {r['success'][0]:.3f} ± {r['success'][1]:.3f} | {r['diversity'][0]:.3f} ± "
-                     f"{r['diversity'][1]:.3f} | "
-                     f"{r['time_ms']:.3f} | {r['library_fit_rms']:.4f} |")
-    lines += ["", f"Tuple + Spline + RF retrained for each P ({len(seeds)} seeds, {args.steps} steps); library fit RMS: "
-              "how well P controls reproduce the held-out trajectories by Eq. (ci) (the library itself was built "
-              "at P = 4, and the P = 5 basis does not contain the P = 4 one)."]
+        lines.append(
+            f"| {p} | {r['success'][0]:.3f} ± {r['success'][1]:.3f} | {r['diversity'][0]:.3f} ± "
+            f"{r['diversity'][1]:.3f} | "
+            f"{r['time_ms']:.3f} | {r['library_fit_rms']:.4f} |"
+        )
+    lines += [
+        "",
+        f"Tuple + Spline + RF retrained for each P ({len(seeds)} seeds, {args.steps} steps); library fit RMS: "
+        "how well P controls reproduce the held-out trajectories by Eq. (ci) (the library itself was built "
+        "at P = 4, and the P = 5 basis does not contain the P = 4 one).",
+    ]
     return {"rows": {str(k): v for k, v in rows.items()}, "markdown": "\n".join(lines), "seeds": list(seeds)}
 
 
@@ -149,8 +186,11 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("name", choices=SWEEPS)
     p.add_argument("--k-div", type=int, default=30)
-    p.add_argument("--seeds", type=int, help="seeds for `controls` (default 3; trains 6 models per seed) and "
-                   "`training` (default 5)")
+    p.add_argument(
+        "--seeds",
+        type=int,
+        help="seeds for `controls` (default 3; trains 6 models per seed) and `training` (default 5)",
+    )
     p.add_argument("--steps", type=int, default=10_000, help="training steps for `controls` and `training`")
     p.add_argument("--reflow-pairs", type=int, default=64, help="`training`: teacher pairs per training example")
     args = p.parse_args(argv)
@@ -159,11 +199,14 @@ def main(argv=None) -> int:
     args.out = RESULTS
     from experiments import sweep_training
 
-    res = {"tau_rms": sweep_tau, "steps": sweep_steps, "controls": sweep_controls,
-           "training": sweep_training.run}[args.name](args)
+    res = {"tau_rms": sweep_tau, "steps": sweep_steps, "controls": sweep_controls, "training": sweep_training.run}[
+        args.name
+    ](args)
     write_atomic(RESULTS / f"sweep_{args.name}.md", res["markdown"] + "\n")
-    write_atomic(RESULTS / f"sweep_{args.name}.json", json.dumps({k: v for k, v in res.items() if k != "markdown"},
-                                                                  indent=1, default=float))
+    write_atomic(
+        RESULTS / f"sweep_{args.name}.json",
+        json.dumps({k: v for k, v in res.items() if k != "markdown"}, indent=1, default=float),
+    )
     print(res["markdown"])
     return 0
 

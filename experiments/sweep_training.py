@@ -9,6 +9,7 @@ at equal network evaluations. Mean ± std over seeds of success (one sample per 
 diversity, coverage RMS; time is the public-API latency measurement. Writes
 results/sweep_training.{md,json}, two figures, and the shipped choice (``choose``).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -54,17 +55,26 @@ def mean_std(x):
 
 def evaluate(trained, lib, cond, key, k_div, sampler, steps, w) -> dict:
     k_gen, k_lat = jax.random.split(key)
-    u = methods.generate(trained, cond, lib.heldout.intensity, k_gen, num_samples=k_div, steps=steps,
-                         sampler=sampler, guidance=w)
+    u = methods.generate(
+        trained, cond, lib.heldout.intensity, k_gen, num_samples=k_div, steps=steps, sampler=sampler, guidance=w
+    )
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))  # (seeds, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
     cov = np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)
-    ms = latency.latency_ms(trained, lib.heldout.intent, lib.heldout.intensity, k_lat, cond=cond, steps=steps,
-                            sampler=sampler, guidance=w)
+    ms = latency.latency_ms(
+        trained, lib.heldout.intent, lib.heldout.intensity, k_lat, cond=cond, steps=steps, sampler=sampler, guidance=w
+    )
     nfe = steps * EVALS_PER_STEP[sampler] * (2 if w else 1)
-    return {"success": mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), "diversity": mean_std(div),
-            "coverage": mean_std(cov), "time_ms": ms, "nfe": nfe, "sampler": sampler, "steps": steps,
-            "guidance": w}
+    return {
+        "success": mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)),
+        "diversity": mean_std(div),
+        "coverage": mean_std(cov),
+        "time_ms": ms,
+        "nfe": nfe,
+        "sampler": sampler,
+        "steps": steps,
+        "guidance": w,
+    }
 
 
 def _better(a: dict, b: dict) -> bool:
@@ -99,13 +109,22 @@ class Sweep:
 
     def train(self, name, overrides=(), method=RF, teacher=None, teacher_guidance=0.0):
         cfg = self.config(overrides)
-        self.configs[name] = {"method": method, **dataclasses.asdict(cfg),
-                              **({"reflow_of": teacher, "teacher_guidance": teacher_guidance} if teacher else {})}
+        self.configs[name] = {
+            "method": method,
+            **dataclasses.asdict(cfg),
+            **({"reflow_of": teacher, "teacher_guidance": teacher_guidance} if teacher else {}),
+        }
         t0 = time.perf_counter()
         if teacher:
-            self.trained[name] = methods.reflow(self.trained[teacher], self.lib, cfg, intent_emb=self.emb,
-                                                pairs_per_example=self.args.reflow_pairs,
-                                                teacher_guidance=teacher_guidance, progress=False)
+            self.trained[name] = methods.reflow(
+                self.trained[teacher],
+                self.lib,
+                cfg,
+                intent_emb=self.emb,
+                pairs_per_example=self.args.reflow_pairs,
+                teacher_guidance=teacher_guidance,
+                progress=False,
+            )
         else:
             self.trained[name] = methods.train(method, self.lib, self.seeds, cfg, intent_emb=self.emb, progress=False)
         self.configs[name]["train_s"] = time.perf_counter() - t0
@@ -115,9 +134,12 @@ class Sweep:
         key = jax.random.fold_in(jax.random.key(16), len(self.rows))
         x = evaluate(self.trained[name], self.lib, self.cond, key, self.args.k_div, sampler, steps, w)
         self.rows[label] = {**x, "run": name, "train_s": self.configs[name]["train_s"]}
-        print(f"{label:44s} success {x['success'][0]:.3f} ± {x['success'][1]:.3f}  div {x['diversity'][0]:.3f} ± "
-              f"{x['diversity'][1]:.3f}  cov {x['coverage'][0]:.3f}  NFE {x['nfe']:3d}  time {x['time_ms']:.3f} ms  "
-              f"(train {self.configs[name]['train_s']:.0f} s)", flush=True)
+        print(
+            f"{label:44s} success {x['success'][0]:.3f} ± {x['success'][1]:.3f}  div {x['diversity'][0]:.3f} ± "
+            f"{x['diversity'][1]:.3f}  cov {x['coverage'][0]:.3f}  NFE {x['nfe']:3d}  time {x['time_ms']:.3f} ms  "
+            f"(train {self.configs[name]['train_s']:.0f} s)",
+            flush=True,
+        )
         return label
 
 
@@ -134,7 +156,9 @@ def run(args) -> dict:
         labels = [sw.eval(opt.name, w=w) for w in opt.guidance]
         top = best(sw.rows, labels)
         axis = opt.train[0][0]
-        if _better(sw.rows[top], sw.rows[base]) and (axis not in winners or _better(sw.rows[top], sw.rows[winners[axis][1]])):
+        if _better(sw.rows[top], sw.rows[base]) and (
+            axis not in winners or _better(sw.rows[top], sw.rows[winners[axis][1]])
+        ):
             winners[axis] = (opt, top)
     # 2. The options that beat the paper's RF on their own, together (when more than one axis won).
     if len(winners) > 1:
@@ -160,8 +184,10 @@ def run(args) -> dict:
     sw.train("DDPM", method=DDPM)
     for sampler, s in (("ancestral", 50), *(("ddim", s) for s in FEW)):
         sw.eval("DDPM", sampler, s)
-    choice = {"default": {"row": default, "run": d["run"], "guidance": d["guidance"], "config": sw.configs[d["run"]]},
-              "few_step": {}}
+    choice = {
+        "default": {"row": default, "run": d["run"], "guidance": d["guidance"], "config": sw.configs[d["run"]]},
+        "few_step": {},
+    }
     for s in FEW:
         pick = best(sw.rows, [k for k, r in sw.rows.items() if r["run"] in few_names and r["steps"] == s])
         choice["few_step"][str(s)] = {"row": pick, "run": sw.rows[pick]["run"], "guidance": sw.rows[pick]["guidance"]}
@@ -169,35 +195,57 @@ def run(args) -> dict:
     figures(sw.rows, args.out)
     md = markdown(sw.rows, choice, sw.seeds, args, run_s)
     print(f"sweep training: {run_s:.0f} s")
-    return {"rows": sw.rows, "choice": choice, "configs": sw.configs, "seeds": list(sw.seeds), "steps": args.steps,
-            "k_div": args.k_div, "reflow_pairs": args.reflow_pairs, "run_s": run_s, "markdown": md}
+    return {
+        "rows": sw.rows,
+        "choice": choice,
+        "configs": sw.configs,
+        "seeds": list(sw.seeds),
+        "steps": args.steps,
+        "k_div": args.k_div,
+        "reflow_pairs": args.reflow_pairs,
+        "run_s": run_s,
+        "markdown": md,
+    }
 
 
 def markdown(rows, choice, seeds, args, run_s) -> str:
-    lines = ["| Option | sampler, S | NFE | Succ. | Div. | Coverage RMS ↓ | Time (ms) |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| Option | sampler, S | NFE | Succ. | Div. | Coverage RMS ↓ | Time (ms) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for k, r in rows.items():
         name, how = k.split(" | ")
-        lines.append(f"| {name} | {how} | {r['nfe']} | {r['success'][0]:.3f} ± {r['success'][1]:.3f} | "
-                     f"{r['diversity'][0]:.3f} ± {r['diversity'][1]:.3f} | {r['coverage'][0]:.3f} ± "
-                     f"{r['coverage'][1]:.3f} | {r['time_ms']:.3f} |")
+        lines.append(
+            f"| {name} | {how} | {r['nfe']} | {r['success'][0]:.3f} ± {r['success'][1]:.3f} | "
+            f"{r['diversity'][0]:.3f} ± {r['diversity'][1]:.3f} | {r['coverage'][0]:.3f} ± "
+            f"{r['coverage'][1]:.3f} | {r['time_ms']:.3f} |"
+        )
     d = choice["default"]
     ref = rows[d["row"]]
-    lines += ["", f"Tuple + Spline + RF (DDPM where named), {len(seeds)} seeds, {args.steps} steps, K = {args.k_div}, "
-              f"τ = {metrics.TAU_RMS}; mean ± std over seeds. NFE: network evaluations per sample (guidance w > 0 "
-              f"doubles them); Time: warm single-trajectory latency (ms). Options that beat the paper's RF on their "
-              f"own (success + 1 point, or within 1 point and lower coverage RMS) are combined in one more run; the "
-              f"default is the best S = 50 row by the same rule; the 2-rectified flow is trained on "
-              f"{args.reflow_pairs} pairs per training example from the default's own seeds (Euler S = 50). "
-              f"Sweep run time {run_s:.0f} s.", ""]
-    lines.append(f"- Shipped default: {d['row']} (guidance w = {d['guidance']:g}): success {ref['success'][0]:.3f}, "
-                 f"diversity {ref['diversity'][0]:.3f}, coverage RMS {ref['coverage'][0]:.3f}.")
+    lines += [
+        "",
+        f"Tuple + Spline + RF (DDPM where named), {len(seeds)} seeds, {args.steps} steps, K = {args.k_div}, "
+        f"τ = {metrics.TAU_RMS}; mean ± std over seeds. NFE: network evaluations per sample (guidance w > 0 "
+        f"doubles them); Time: warm single-trajectory latency (ms). Options that beat the paper's RF on their "
+        f"own (success + 1 point, or within 1 point and lower coverage RMS) are combined in one more run; the "
+        f"default is the best S = 50 row by the same rule; the 2-rectified flow is trained on "
+        f"{args.reflow_pairs} pairs per training example from the default's own seeds (Euler S = 50). "
+        f"Sweep run time {run_s:.0f} s.",
+        "",
+    ]
+    lines.append(
+        f"- Shipped default: {d['row']} (guidance w = {d['guidance']:g}): success {ref['success'][0]:.3f}, "
+        f"diversity {ref['diversity'][0]:.3f}, coverage RMS {ref['coverage'][0]:.3f}."
+    )
     for s in FEW:
         r = rows[choice["few_step"][str(s)]["row"]]
         ok = ref["success"][0] - r["success"][0] <= 0.02 and r["diversity"][0] >= 0.8 * ref["diversity"][0]
-        lines.append(f"- `steps={s}` is served by {choice['few_step'][str(s)]['row']}: success {r['success'][0]:.3f}, "
-                     f"diversity {r['diversity'][0]:.3f} (default at S = 50: {ref['success'][0]:.3f} / "
-                     f"{ref['diversity'][0]:.3f}); goal (within 2 points, ≥ 80 % of its diversity) "
-                     f"{'met' if ok else 'NOT met'}.")
+        lines.append(
+            f"- `steps={s}` is served by {choice['few_step'][str(s)]['row']}: success {r['success'][0]:.3f}, "
+            f"diversity {r['diversity'][0]:.3f} (default at S = 50: {ref['success'][0]:.3f} / "
+            f"{ref['diversity'][0]:.3f}); goal (within 2 points, ≥ 80 % of its diversity) "
+            f"{'met' if ok else 'NOT met'}."
+        )
     return "\n".join(lines)
 
 
@@ -205,8 +253,15 @@ def figures(rows, out):
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for k, r in rows.items():
         if r["steps"] == 50 and r["sampler"] == "euler" and not r["run"].startswith("2-rectified"):
-            ax.errorbar(r["diversity"][0], r["success"][0], r["success"][1], r["diversity"][1], marker="o",
-                        capsize=3, label=k.replace(" | euler S=50", ""))
+            ax.errorbar(
+                r["diversity"][0],
+                r["success"][0],
+                r["success"][1],
+                r["diversity"][1],
+                marker="o",
+                capsize=3,
+                label=k.replace(" | euler S=50", ""),
+            )
     ax.set_xlabel("diversity (mean pairwise RMS)")
     ax.set_ylabel("held-out success (τ = 0.35)")
     ax.set_title("generator options (Euler S = 50)", fontsize=9)
@@ -220,8 +275,14 @@ def figures(rows, out):
         pts = sorted((r["nfe"], r["success"]) for r in rs)
         if len(pts) < 3:
             continue
-        ax.errorbar([p[0] for p in pts], [p[1][0] for p in pts], [p[1][1] for p in pts], marker="o", capsize=3,
-                    label=name + (" (DDIM; 50 = ancestral)" if name == "DDPM" else " (Euler)"))
+        ax.errorbar(
+            [p[0] for p in pts],
+            [p[1][0] for p in pts],
+            [p[1][1] for p in pts],
+            marker="o",
+            capsize=3,
+            label=name + (" (DDIM; 50 = ancestral)" if name == "DDPM" else " (Euler)"),
+        )
     ax.set_xscale("log")
     ax.set_xlabel("network evaluations per sample")
     ax.set_ylabel("held-out success (τ = 0.35)")

@@ -12,6 +12,7 @@ parameters as an uninterrupted run. ``--devices N`` (0 = all) splits the seeds o
 multi-host job sets ``JAX_COORDINATOR_ADDRESS/JAX_NUM_PROCESSES/JAX_PROCESS_ID`` (docs/distributed.md)
 and only process 0 writes checkpoints.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,10 +43,13 @@ def main(argv=None) -> int:
     opts.add_argument("--ema-decay", type=float, default=0.0, help="keep and ship an EMA of the parameters (0 = off)")
     opts.add_argument("--time-sampler", default="uniform", help="flow-time distribution: uniform, logit_normal, beta")
     opts.add_argument("--condition-dropout", type=float, default=0.0, help="train the null condition (for guidance)")
-    opts.add_argument("--guidance", type=float, default=0.0, help="guidance weight w recorded as the checkpoint's "
-                      "sampling default")
-    opts.add_argument("--reflow-from", help="train a 2-rectified flow from this RF checkpoint's own samples "
-                      "(seeds of --seeds; not resumable)")
+    opts.add_argument(
+        "--guidance", type=float, default=0.0, help="guidance weight w recorded as the checkpoint's sampling default"
+    )
+    opts.add_argument(
+        "--reflow-from",
+        help="train a 2-rectified flow from this RF checkpoint's own samples (seeds of --seeds; not resumable)",
+    )
     opts.add_argument("--reflow-pairs", type=int, default=64, help="teacher pairs per training example")
     args = p.parse_args(argv)
     try:
@@ -55,8 +59,13 @@ def main(argv=None) -> int:
     if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         p.error(f"--seeds must be distinct non-negative integers separated by commas, e.g. 0,1,2; got {args.seeds!r}")
     try:
-        config = training.TrainConfig(steps=args.steps, chunk=args.chunk, ema_decay=args.ema_decay,
-                                      time_sampler=args.time_sampler, condition_dropout=args.condition_dropout)
+        config = training.TrainConfig(
+            steps=args.steps,
+            chunk=args.chunk,
+            ema_decay=args.ema_decay,
+            time_sampler=args.time_sampler,
+            condition_dropout=args.condition_dropout,
+        )
         sample_cfg = SampleConfig(guidance=args.guidance)
         methods.check_options(args.method, config)
     except ValueError as e:
@@ -76,13 +85,22 @@ def main(argv=None) -> int:
         texts = [t for row in lib.train.texts for t in row]
         text_emb = semantics.embed(texts).reshape(len(lib.train), -1, 384)
     tuples = sorted({(int(m), int(z)) for m, z in zip(lib.train.intent, lib.train.intensity)})
-    meta = {"method": args.method, "seeds": list(seeds), "num_controls": args.num_controls,
-            "model": dataclasses.asdict(ModelConfig()), "config": dataclasses.asdict(config),
-            "sample": dataclasses.asdict(sample_cfg), "library_sha256": library.file_hash(lib.path),
-            "library_version": lib.meta.get("library_version", "1 (unversioned)")}
+    meta = {
+        "method": args.method,
+        "seeds": list(seeds),
+        "num_controls": args.num_controls,
+        "model": dataclasses.asdict(ModelConfig()),
+        "config": dataclasses.asdict(config),
+        "sample": dataclasses.asdict(sample_cfg),
+        "library_sha256": library.file_hash(lib.path),
+        "library_version": lib.meta.get("library_version", "1 (unversioned)"),
+    }
     if args.library:  # the shipped library's checkpoints keep their old metadata
-        meta.update(library_path=str(Path(lib.path).resolve()), num_tendons=num_tendons,
-                    tuples=[f"{INTENTS[m]}/{INTENSITIES[z]}" for m, z in tuples])
+        meta.update(
+            library_path=str(Path(lib.path).resolve()),
+            num_tendons=num_tendons,
+            tuples=[f"{INTENTS[m]}/{INTENSITIES[z]}" for m, z in tuples],
+        )
     run_dir = args.out + ".run"
     if args.reflow_from:
         return reflow(args, lib, config, meta, seeds, writer)
@@ -98,8 +116,9 @@ def main(argv=None) -> int:
     initial = None
     try:  # resume only the same run: method, seeds, P, library and optimizer settings must match
         tmpl = to_tree(template())
-        tree, m = checkpoints.restore(run_dir, tmpl, expect={k: meta[k] for k in
-                                                             ("method", "seeds", "num_controls", "library_sha256")})
+        tree, m = checkpoints.restore(
+            run_dir, tmpl, expect={k: meta[k] for k in ("method", "seeds", "num_controls", "library_sha256")}
+        )
         fixed = {k: v for k, v in meta["config"].items() if k not in ("steps", "chunk")}
         stored = {k: m.get("config", {}).get(k) for k in fixed}
         if stored != fixed:
@@ -117,12 +136,22 @@ def main(argv=None) -> int:
         if writer:
             checkpoints.save(run_dir, to_tree(states), {**meta, "step": done})
 
-    trained = methods.train(args.method, lib, seeds, config, text_emb=text_emb, num_controls=args.num_controls,
-                            initial_states=initial, on_chunk=on_chunk, mesh=mesh)
+    trained = methods.train(
+        args.method,
+        lib,
+        seeds,
+        config,
+        text_emb=text_emb,
+        num_controls=args.num_controls,
+        initial_states=initial,
+        on_chunk=on_chunk,
+        mesh=mesh,
+    )
     final = jax.tree.map(lambda x: x[:1], trained.params) if len(seeds) > 1 else trained.params
     if writer:
-        checkpoints.save(args.out, final, {**meta, **methods.checkpoint_meta(trained), "seeds": [seeds[0]],
-                                           "step": args.steps})
+        checkpoints.save(
+            args.out, final, {**meta, **methods.checkpoint_meta(trained), "seeds": [seeds[0]], "step": args.steps}
+        )
         import shutil
 
         shutil.rmtree(run_dir, ignore_errors=True)  # the run finished: its resume state is no longer needed
@@ -138,11 +167,22 @@ def reflow(args, lib, config, meta, seeds, writer) -> int:
     w = float(teacher_meta.get("sample", {}).get("guidance", 0.0))
     trained = methods.reflow(teacher, lib, config, pairs_per_example=args.reflow_pairs, teacher_guidance=w)
     if writer:
-        checkpoints.save(args.out, trained.params, {**meta, **methods.checkpoint_meta(trained), "step": args.steps,
-                                                    "reflow_of": str(args.reflow_from), "teacher_guidance": w,
-                                                    "reflow_pairs": args.reflow_pairs})
-    print(f"saved {args.out} (2-rectified flow of {args.reflow_from}, seeds {list(trained.seeds)}); "
-          f"final loss {float(trained.losses[0, -100:].mean()):.4f}")
+        checkpoints.save(
+            args.out,
+            trained.params,
+            {
+                **meta,
+                **methods.checkpoint_meta(trained),
+                "step": args.steps,
+                "reflow_of": str(args.reflow_from),
+                "teacher_guidance": w,
+                "reflow_pairs": args.reflow_pairs,
+            },
+        )
+    print(
+        f"saved {args.out} (2-rectified flow of {args.reflow_from}, seeds {list(trained.seeds)}); "
+        f"final loss {float(trained.losses[0, -100:].mean()):.4f}"
+    )
     return 0
 
 

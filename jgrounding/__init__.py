@@ -18,7 +18,6 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "osmesa"
 
 from jgrounding import safety
-
 from jgrounding.actuation import splines
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe, intensity_index, intent_index
 
@@ -33,8 +32,7 @@ _LAZY = {
     "sim": ("jgrounding.sim", None),
 }
 
-__all__ = ["INTENTS", "INTENSITIES", "describe", "intent_index", "intensity_index", "splines",
-           "safety", *_LAZY]
+__all__ = ["INTENTS", "INTENSITIES", "describe", "intent_index", "intensity_index", "splines", "safety", *_LAZY]
 
 
 def __getattr__(name):

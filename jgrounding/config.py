@@ -27,8 +27,12 @@ def _integer(owner: str, name: str, value, low: int) -> None:
 
 
 def _real(owner: str, name: str, value, low: float, high: float, *, high_open: bool = False) -> None:
-    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and low <= value <= high \
+    ok = (
+        isinstance(value, numbers.Real)
+        and not isinstance(value, bool)
+        and low <= value <= high
         and not (high_open and value == high)
+    )
     if not ok:
         raise ValueError(f"{owner}.{name} must be a number in [{low}, {high}{')' if high_open else ']'}, got {value!r}")
 
@@ -47,8 +51,15 @@ class ModelConfig:
     cnn_kernel: int = 5  # hidden convolutions (the output convolution has kernel 3)
 
     def __post_init__(self):
-        for name in ("width", "time_dim", "text_dim", "intensity_dim", "cnn_channels", "dense_cnn_channels",
-                     "cnn_kernel"):
+        for name in (
+            "width",
+            "time_dim",
+            "text_dim",
+            "intensity_dim",
+            "cnn_channels",
+            "dense_cnn_channels",
+            "cnn_kernel",
+        ):
             _integer("ModelConfig", name, getattr(self, name), 1)
         _integer("ModelConfig", "depth", self.depth, 2)
         if self.time_dim % 2:
@@ -80,8 +91,9 @@ class TrainConfig:
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < 1:
                 raise ValueError(f"TrainConfig.{name} must be a number in [0, 1), got {value!r}")
         if self.time_sampler not in TIME_SAMPLERS:
-            raise ValueError(f"TrainConfig.time_sampler must be one of {', '.join(TIME_SAMPLERS)}, "
-                             f"got {self.time_sampler!r}")
+            raise ValueError(
+                f"TrainConfig.time_sampler must be one of {', '.join(TIME_SAMPLERS)}, got {self.time_sampler!r}"
+            )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,5 +138,7 @@ def model_config(meta: dict) -> ModelConfig:
         return ModelConfig()
     names = {f.name for f in dataclasses.fields(ModelConfig)}
     if not isinstance(stored, dict) or set(stored) - names:
-        raise ValueError(f"checkpoint model sizes {stored!r} are not a ModelConfig (fields: {', '.join(sorted(names))})")
+        raise ValueError(
+            f"checkpoint model sizes {stored!r} are not a ModelConfig (fields: {', '.join(sorted(names))})"
+        )
     return ModelConfig(**stored)

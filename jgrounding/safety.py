@@ -74,8 +74,9 @@ def make_safe(u: jax.Array, max_slew: float | None = MAX_SLEW, current: jax.Arra
     """
     u = jnp.clip(u, ACTUATION_MIN, ACTUATION_MAX)
     if current is not None:
-        current = jnp.clip(jnp.broadcast_to(jnp.asarray(current, u.dtype), u.shape[:-2] + u.shape[-1:]),
-                           ACTUATION_MIN, ACTUATION_MAX)
+        current = jnp.clip(
+            jnp.broadcast_to(jnp.asarray(current, u.dtype), u.shape[:-2] + u.shape[-1:]), ACTUATION_MIN, ACTUATION_MAX
+        )
         w = blend_weights(u.shape[-2])[:, None]  # (T, 1)
         u = jnp.clip(u + w * (current - u[..., 0, :])[..., None, :], ACTUATION_MIN, ACTUATION_MAX)
     if max_slew is None:
@@ -93,13 +94,16 @@ def current_command(current, num_channels: int = 4) -> np.ndarray | None:
         return None
     if isinstance(current, str):
         if current != REST:
-            raise ValueError(f"current must be {REST!r}, None or a ({num_channels},) command in [0, 1], got {current!r}")
+            raise ValueError(
+                f"current must be {REST!r}, None or a ({num_channels},) command in [0, 1], got {current!r}"
+            )
         return np.zeros(num_channels, np.float32)
     try:
         arr = np.asarray(current, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"current must be {REST!r}, None or a ({num_channels},) command in [0, 1], "
-                         f"got {type(current).__name__}") from None
+        raise ValueError(
+            f"current must be {REST!r}, None or a ({num_channels},) command in [0, 1], got {type(current).__name__}"
+        ) from None
     if arr.shape != (num_channels,):
         raise ValueError(f"current must have shape ({num_channels},) (one pull per tendon), got {arr.shape}")
     if not np.all(np.isfinite(arr)):

@@ -73,8 +73,9 @@ def normalise(name: str) -> str:
 def _index(value, names: tuple[str, ...], kind: str) -> int:
     if isinstance(value, bool):  # bool is an int; refuse it explicitly.
         raise ValueError(f"{kind} must be a name or an index, got bool {value!r}; valid: {', '.join(names)}")
-    if isinstance(value, numbers.Integral) or (hasattr(value, "dtype") and getattr(value, "ndim", 1) == 0
-                                                and "int" in str(value.dtype)):
+    if isinstance(value, numbers.Integral) or (
+        hasattr(value, "dtype") and getattr(value, "ndim", 1) == 0 and "int" in str(value.dtype)
+    ):
         i = int(value)
         if 0 <= i < len(names):
             return i
@@ -85,8 +86,9 @@ def _index(value, names: tuple[str, ...], kind: str) -> int:
             return names.index(key)
         plural = "intensities" if kind == "intensity" else f"{kind}s"
         raise ValueError(f"unknown {kind} {value!r}; valid {plural}: {', '.join(names)}")
-    raise ValueError(f"{kind} must be a name (str) or an index (int), got {type(value).__name__}; "
-                     f"valid: {', '.join(names)}")
+    raise ValueError(
+        f"{kind} must be a name (str) or an index (int), got {type(value).__name__}; valid: {', '.join(names)}"
+    )
 
 
 def intent_index(intent: str | int) -> int:

@@ -36,14 +36,17 @@ def test_model_sizes_reach_the_network():
     model = methods.build_model("tuple_spline_rf", 4, jax.random.key(0), 4, small)
     assert model.l1.kernel.value.shape == (16 + 16 + 384 + 64, 32) and model.l3.kernel.value.shape == (32, 16)
     assert not hasattr(model, "l4")
-    cnn = methods.build_model("tuple_dense_cnn", 4, jax.random.key(0), 4, dataclasses.replace(small, dense_cnn_channels=8))
+    cnn = methods.build_model(
+        "tuple_dense_cnn", 4, jax.random.key(0), 4, dataclasses.replace(small, dense_cnn_channels=8)
+    )
     assert cnn.c1.w.value.shape == (5, 8, 8)
 
 
 def test_checkpoint_records_model_sizes_and_restores_them(tmp_path):
     small = config.ModelConfig(width=32, depth=3)
-    tr = methods.train("tuple_spline_rf", jg.load_library(), (0,), training.TrainConfig(steps=2, chunk=2),
-                       progress=False, model=small)
+    tr = methods.train(
+        "tuple_spline_rf", jg.load_library(), (0,), training.TrainConfig(steps=2, chunk=2), progress=False, model=small
+    )
     checkpoints.save(tmp_path / "ck", tr.params, methods.checkpoint_meta(tr))
     assert json.loads((tmp_path / "ck" / "meta.json").read_text())["model"]["width"] == 32
     back = methods.restore(tmp_path / "ck")
@@ -56,9 +59,17 @@ def test_a_checkpoint_without_sizes_loads_with_table_one_sizes_or_is_refused(tmp
     meta = checkpoints.read_meta(DEFAULT_CHECKPOINT)
     old = methods.restore(DEFAULT_CHECKPOINT)  # written before sizes were recorded
     assert "model" in meta or old.model == config.ModelConfig()
-    tr = methods.train("tuple_spline_rf", jg.load_library(), (0,), training.TrainConfig(steps=1, chunk=1),
-                       progress=False, model=config.ModelConfig(width=32))
-    checkpoints.save(tmp_path / "old", tr.params, {k: v for k, v in methods.checkpoint_meta(tr).items() if k != "model"})
+    tr = methods.train(
+        "tuple_spline_rf",
+        jg.load_library(),
+        (0,),
+        training.TrainConfig(steps=1, chunk=1),
+        progress=False,
+        model=config.ModelConfig(width=32),
+    )
+    checkpoints.save(
+        tmp_path / "old", tr.params, {k: v for k, v in methods.checkpoint_meta(tr).items() if k != "model"}
+    )
     with pytest.raises(ValueError, match="shape"):  # its arrays do not fit Table I's sizes
         methods.restore(tmp_path / "old")
     checkpoints.save(tmp_path / "odd", tr.params, {**methods.checkpoint_meta(tr), "model": {"width": 32, "heads": 2}})

@@ -1,5 +1,6 @@
 """The docs say what the code does: the API reference is regenerated and compared, the MLLM page is
 checked against the client, and every relative link in docs/ points at a file."""
+
 import json
 import re
 from pathlib import Path
@@ -19,8 +20,7 @@ def _block(text: str, name: str) -> str:
 def test_api_reference_is_up_to_date():
     from tools import api_docs
 
-    assert (DOCS / "api.md").read_text() == api_docs.render(), \
-        "docs/api.md is stale: run `python -m tools.api_docs`"
+    assert (DOCS / "api.md").read_text() == api_docs.render(), "docs/api.md is stale: run `python -m tools.api_docs`"
 
 
 def test_mllm_page_matches_the_client():

@@ -46,12 +46,12 @@ def test_blend_from_rest_bounds_the_first_step():
     out = safety.emit(u, current="rest")
     assert safety.is_safe(out, current=np.zeros(4))
     assert not safety.is_safe(safety.emit(u), current=np.zeros(4))  # without current the jump is there
-    np.testing.assert_allclose(out[safety.BLEND_STEPS:], u[safety.BLEND_STEPS:], atol=1e-6)  # back on track
+    np.testing.assert_allclose(out[safety.BLEND_STEPS :], u[safety.BLEND_STEPS :], atol=1e-6)  # back on track
 
 
 def test_blend_weights_fade_from_one_to_zero():
     w = np.asarray(safety.blend_weights(150))
-    assert w[0] == pytest.approx(1.0) and w[safety.BLEND_STEPS - 1] > 0 and np.all(w[safety.BLEND_STEPS:] == 0)
+    assert w[0] == pytest.approx(1.0) and w[safety.BLEND_STEPS - 1] > 0 and np.all(w[safety.BLEND_STEPS :] == 0)
     assert np.all(np.diff(w) <= 0) and np.abs(np.diff(w)).max() <= np.pi / (2 * safety.BLEND_STEPS) + 1e-6
 
 

@@ -39,8 +39,13 @@ def _imports(path: Path, mods) -> tuple[set[str], set[tuple[str, str]]]:
                     private.add(full)
         elif isinstance(node, ast.Import):
             deps.update(a.name for a in node.names if a.name.startswith("jgrounding"))
-        elif (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
-              and isinstance(node.value, ast.Name) and node.value.id in ours):
+        elif (
+            isinstance(node, ast.Attribute)
+            and node.attr.startswith("_")
+            and not node.attr.startswith("__")
+            and isinstance(node.value, ast.Name)
+            and node.value.id in ours
+        ):
             private.add(f"{node.value.id}.{node.attr}")
     return deps & set(mods), private
 

@@ -1,6 +1,7 @@
 """Validation at the public boundary (issue: reliability): every invalid input raises a ValueError or
 TypeError that names what is accepted. (Vocabulary, jg.sample and trunk cases live beside their
 modules' tests and in tests/test_fuzz.py.)"""
+
 import contextlib
 import dataclasses
 import io
@@ -12,24 +13,26 @@ import pytest
 
 import jgrounding as jg
 from jgrounding import library, semantics, training
-from jgrounding.training import checkpoints
-from jgrounding.apps import cli
-from jgrounding.generators import methods
-from jgrounding.generators import sampling
 from jgrounding.actuation import splines
+from jgrounding.apps import cli
+from jgrounding.generators import methods, sampling
+from jgrounding.training import checkpoints
 
 
-@pytest.mark.parametrize("call, exc, match", [
-    (lambda: splines.fit(np.zeros((150, 4), complex)), TypeError, r"real numeric array \(float, integer or bool\)"),
-    (lambda: splines.fit(np.full((150, 4), "a")), TypeError, r"actuation must be a real numeric array of shape"),
-    (lambda: splines.fit([[0.0, 1.0], [0.5]]), ValueError, r"shape \(\.\.\., T, N_u\)"),
-    (lambda: splines.fit(None), ValueError, "actuation must be a real numeric array"),
-    (lambda: splines.reconstruct(np.zeros((4, 4), complex)), TypeError, r"controls must be a real numeric array"),
-    (lambda: splines.reconstruct("controls"), TypeError, r"shape \(\.\.\., N_u, P\)"),
-    (lambda: splines.fit(np.zeros((150, 4)), num_controls=True), ValueError, "integer >= 2"),
-    (lambda: splines.reconstruct(np.zeros((4, 4)), num_steps=True), ValueError, "num_steps"),
-    (lambda: splines.reconstruct(np.zeros((4, 4)), num_steps=4.0), ValueError, "num_steps"),
-])
+@pytest.mark.parametrize(
+    "call, exc, match",
+    [
+        (lambda: splines.fit(np.zeros((150, 4), complex)), TypeError, r"real numeric array \(float, integer or bool\)"),
+        (lambda: splines.fit(np.full((150, 4), "a")), TypeError, r"actuation must be a real numeric array of shape"),
+        (lambda: splines.fit([[0.0, 1.0], [0.5]]), ValueError, r"shape \(\.\.\., T, N_u\)"),
+        (lambda: splines.fit(None), ValueError, "actuation must be a real numeric array"),
+        (lambda: splines.reconstruct(np.zeros((4, 4), complex)), TypeError, r"controls must be a real numeric array"),
+        (lambda: splines.reconstruct("controls"), TypeError, r"shape \(\.\.\., N_u, P\)"),
+        (lambda: splines.fit(np.zeros((150, 4)), num_controls=True), ValueError, "integer >= 2"),
+        (lambda: splines.reconstruct(np.zeros((4, 4)), num_steps=True), ValueError, "num_steps"),
+        (lambda: splines.reconstruct(np.zeros((4, 4)), num_steps=4.0), ValueError, "num_steps"),
+    ],
+)
 def test_splines_refuse_non_real_or_ragged_input(call, exc, match):
     with pytest.raises(exc, match=match):
         call()
@@ -42,12 +45,15 @@ def test_splines_accept_integer_and_bool_arrays_and_stay_jittable():
     assert c.shape == (2, 4, 4)
 
 
-@pytest.mark.parametrize("key, exc, got", [
-    (7, TypeError, "got int"),
-    (np.zeros(2, np.int32), TypeError, r"got int32\[2\] array"),
-    (np.zeros(3, np.uint32), TypeError, r"got uint32\[3\] array"),
-    (jax.random.split(jax.random.key(0), 2), ValueError, r"key array of shape \(2,\)"),
-])
+@pytest.mark.parametrize(
+    "key, exc, got",
+    [
+        (7, TypeError, "got int"),
+        (np.zeros(2, np.int32), TypeError, r"got int32\[2\] array"),
+        (np.zeros(3, np.uint32), TypeError, r"got uint32\[3\] array"),
+        (jax.random.split(jax.random.key(0), 2), ValueError, r"key array of shape \(2,\)"),
+    ],
+)
 def test_sample_key_errors_name_both_accepted_kinds(key, exc, got):
     with pytest.raises(exc, match=got) as info:
         jg.sample(key, "greeting", "moderate")
@@ -64,11 +70,17 @@ def test_ground_refuses_unencodable_text_and_bounds_long_text():
     assert semantics.MAX_CHARS == cli.MAX_TEXT_CHARS  # the command line refuses what ground() would not read
 
 
-@pytest.mark.parametrize("field, value, match", [
-    ("steps", -1, "steps must be an integer >= 0"), ("chunk", 0, "chunk must be an integer >= 1"),
-    ("batch_size", 2.5, "batch_size must be an integer >= 1"), ("learning_rate", float("nan"), "finite number"),
-    ("weight_decay", -1.0, "finite number >= 0"), ("chunk", True, "chunk must be an integer"),
-])
+@pytest.mark.parametrize(
+    "field, value, match",
+    [
+        ("steps", -1, "steps must be an integer >= 0"),
+        ("chunk", 0, "chunk must be an integer >= 1"),
+        ("batch_size", 2.5, "batch_size must be an integer >= 1"),
+        ("learning_rate", float("nan"), "finite number"),
+        ("weight_decay", -1.0, "finite number >= 0"),
+        ("chunk", True, "chunk must be an integer"),
+    ],
+)
 def test_train_config_refuses_bad_values(field, value, match):
     with pytest.raises(ValueError, match=match):
         training.TrainConfig(**{field: value})
@@ -92,14 +104,17 @@ def test_cli_refuses_unusable_out_folders_and_undecodable_text(tmp_path):
     assert code == 2 and "not valid UTF-8" in err
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["--seeds", "0,x"], "--seeds must be distinct non-negative integers"),
-    (["--seeds", "1,1"], "--seeds must be distinct"),
-    (["--seeds", "-2"], "--seeds must be distinct non-negative"),
-    (["--chunk", "0"], "--chunk must be an integer >= 1"),
-    (["--steps", "-5"], "--steps must be an integer >= 0"),
-    (["--devices", "99"], "--devices must be in 0.."),
-])
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["--seeds", "0,x"], "--seeds must be distinct non-negative integers"),
+        (["--seeds", "1,1"], "--seeds must be distinct"),
+        (["--seeds", "-2"], "--seeds must be distinct non-negative"),
+        (["--chunk", "0"], "--chunk must be an integer >= 1"),
+        (["--steps", "-5"], "--steps must be an integer >= 0"),
+        (["--devices", "99"], "--devices must be in 0.."),
+    ],
+)
 def test_train_script_usage_errors(tmp_path, argv, match):
     from experiments import train
 
@@ -116,9 +131,18 @@ def test_train_script_refuses_to_resume_a_different_run(tmp_path):
     states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
     tree = dataclasses.replace(states, key=jax.random.key_data(states.key))
     out = tmp_path / "ck"
-    checkpoints.save(str(out) + ".run", tree, {"method": "tuple_spline_rf", "seeds": [0], "num_controls": 4,
-                                               "config": dataclasses.asdict(config), "step": 10,
-                                               "library_sha256": "another library"})
+    checkpoints.save(
+        str(out) + ".run",
+        tree,
+        {
+            "method": "tuple_spline_rf",
+            "seeds": [0],
+            "num_controls": 4,
+            "config": dataclasses.asdict(config),
+            "step": 10,
+            "library_sha256": "another library",
+        },
+    )
     with pytest.raises(SystemExit, match="(?s)cannot resume.*library_sha256.*delete .*ck.run"):
         train.main(["--out", str(out), "--steps", "20", "--chunk", "10"])
     assert library.file_hash() != "another library"

@@ -6,6 +6,7 @@ line from its argparse parser. ``tests/test_docs.py`` regenerates the page in me
 file differs, so the reference cannot drift from the code: after changing a public docstring or
 signature, run this script again.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -93,17 +94,20 @@ def cli_reference() -> str:
         choices = ", ".join(str(c) for c in a.choices) if a.choices else ""
         rows.append(f"| `{name}` | {default} | {choices} | {(a.help or '').replace('|', '/')} |")
     doc = markdown(inspect.getdoc(cli))
-    return (f"## Command line: `{parser.prog}`\n\n{parser.description}\n\n{doc}\n\n" + "\n".join(rows)
-            + "\n\n`--quiet` and `--jsonl` exclude each other. Exit status: 0 on success, 2 on a usage error "
-              "(argparse), 1 when grounding or sampling raises a `ValueError`/`TypeError`.\n")
+    return (
+        f"## Command line: `{parser.prog}`\n\n{parser.description}\n\n{doc}\n\n"
+        + "\n".join(rows)
+        + "\n\n`--quiet` and `--jsonl` exclude each other. Exit status: 0 on success, 2 on a usage error "
+        "(argparse), 1 when grounding or sampling raises a `ValueError`/`TypeError`.\n"
+    )
 
 
 def render() -> str:
     """The Markdown page."""
     import jgrounding as jg
     from jgrounding import library, safety, semantics, sim
-    from jgrounding.semantics import mllm
     from jgrounding.actuation import splines
+    from jgrounding.semantics import mllm
 
     parts = [
         "# API reference",
@@ -123,7 +127,8 @@ def render() -> str:
         f"`jg.INTENTS` — {len(jg.INTENTS)} intents, index order: " + ", ".join(f"`{m}`" for m in jg.INTENTS) + ".",
         "",
         f"`jg.INTENSITIES` — {len(jg.INTENSITIES)} intensities, ordered: "
-        + ", ".join(f"`{z}`" for z in jg.INTENSITIES) + ".",
+        + ", ".join(f"`{z}`" for z in jg.INTENSITIES)
+        + ".",
         "",
         function("jg.intent_index", jg.intent_index),
         function("jg.intensity_index", jg.intensity_index),
@@ -132,7 +137,7 @@ def render() -> str:
         "",
         function("jg.ground", semantics.ground),
         record("Grounding", semantics.Grounding),
-        "`**mllm_options` of `jg.ground(..., backend=\"mllm\")` are the keyword arguments of "
+        '`**mllm_options` of `jg.ground(..., backend="mllm")` are the keyword arguments of '
         "`jgrounding.semantics.mllm.ground_mllm` (see [mllm.md](mllm.md)):",
         "",
         function("jgrounding.semantics.mllm.ground_mllm", mllm.ground_mllm),

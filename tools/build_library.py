@@ -3,6 +3,7 @@
 Writes assets/library.npz + assets/library.json (byte-identical for a seed), the library card
 docs/library_card.md and its figures under docs/library/.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,9 +21,11 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     arrays, card = library.build(library.BuildConfig(seed=args.seed))
     path = library.save(arrays, card, args.out)
-    print(f"wrote {path} ({card['num_train']} train / {card['num_heldout']} held-out; "
-          f"{card['candidates_accepted']}/{card['candidates_tried']} candidates accepted) "
-          f"in {time.perf_counter() - t0:.1f} s")
+    print(
+        f"wrote {path} ({card['num_train']} train / {card['num_heldout']} held-out; "
+        f"{card['candidates_accepted']}/{card['candidates_tried']} candidates accepted) "
+        f"in {time.perf_counter() - t0:.1f} s"
+    )
     if not args.no_card:
         from tools import library_card
 

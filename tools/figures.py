@@ -8,6 +8,7 @@
   (grounding, splines, sampling, trunk).
 - ``cli``: runs the command line on the README's example and keeps its pictures in docs/cli/.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -16,11 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import safety, sim
-
-from jgrounding.sim import render
-
-from jgrounding.sim import model as trunk_model
 from jgrounding.apps.plotting import TENDON_COLORS, TENDON_LABELS, plt, save
+from jgrounding.sim import model as trunk_model
+from jgrounding.sim import render
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 T = sim.NUM_STEPS
@@ -58,28 +57,47 @@ def primitive_commands() -> dict[str, np.ndarray]:
 def _measure(r: sim.Rollout, t: int) -> dict[str, float]:
     rest_tip = sim.BASE_POSITION - np.array([0.0, 0.0, trunk_model.TRUNK_LENGTH])
     b = r.backbone[0, t]
-    return {"dx": b[-1, 0] - rest_tip[0], "dy": b[-1, 1] - rest_tip[1], "tip_z": b[-1, 2],
-            "length": float(np.linalg.norm(np.diff(b, axis=0), axis=1).sum()),
-            "turn": float(np.degrees(sim.turning_angle(b[None])[0])),
-            "user": float(r.user_distance[0, t]), "force": float(r.contact_force[0, t]),
-            "touches": "touches" if r.contact_force[0, t] > 1e-3 else "no contact"}
+    return {
+        "dx": b[-1, 0] - rest_tip[0],
+        "dy": b[-1, 1] - rest_tip[1],
+        "tip_z": b[-1, 2],
+        "length": float(np.linalg.norm(np.diff(b, axis=0), axis=1).sum()),
+        "turn": float(np.degrees(sim.turning_angle(b[None])[0])),
+        "user": float(r.user_distance[0, t]),
+        "force": float(r.contact_force[0, t]),
+        "touches": "touches" if r.contact_force[0, t] > 1e-3 else "no contact",
+    }
 
 
 # (family, [(command, control step, view, what the title says)]); the title's numbers come from the rollout.
 FAMILIES = {
-    "bend": [("bend_toward_user", T - 1, render.SIDE_VIEW, "toward the user: tendon 0 at 0.6\ntip {dx:+.2f} m in x"),
-             ("bend_away", T - 1, render.SIDE_VIEW, "away: tendon 2 at 0.6\ntip {dx:+.2f} m in x"),
-             ("bend_left", T - 1, render.REAR_VIEW, "robot's left: tendon 1 at 0.6\ntip {dy:+.2f} m in y"),
-             ("bend_right", T - 1, render.REAR_VIEW, "robot's right: tendon 3 at 0.6\ntip {dy:+.2f} m in y")],
-    "curl": [("curl_away", T - 1, render.SIDE_VIEW, "tendon 2 at 1.0 (away)\nbackbone turns {turn:.0f}°"),
-             ("curl_left", T - 1, render.REAR_VIEW, "tendon 1 at 1.0 (left)\nbackbone turns {turn:.0f}°")],
-    "retract": [("retract", 0, render.SIDE_VIEW, "all slack (t = 0)\nlength {length:.2f} m"),
-                ("retract", T - 1, render.SIDE_VIEW, "all four at 1.0 (co-contraction)\nlength {length:.2f} m")],
-    "extend": [("extend", 74, render.SIDE_VIEW, "retracted (t = 2.5 s)\nlength {length:.2f} m"),
-               ("extend", T - 1, render.SIDE_VIEW, "all released to slack (t = 5 s)\nlength {length:.2f} m")],
-    "touch": [("touch", 75, render.SIDE_VIEW, "slow reach, tendon 0 at 0.5 (t = 2.5 s)\n{user:.3f} m from the user"),
-              ("touch", T - 1, render.SIDE_VIEW,
-               "tendon 0 at 1.0 (t = 5 s): {touches}\n{user:.3f} m from the user, {force:.2f} N")],
+    "bend": [
+        ("bend_toward_user", T - 1, render.SIDE_VIEW, "toward the user: tendon 0 at 0.6\ntip {dx:+.2f} m in x"),
+        ("bend_away", T - 1, render.SIDE_VIEW, "away: tendon 2 at 0.6\ntip {dx:+.2f} m in x"),
+        ("bend_left", T - 1, render.REAR_VIEW, "robot's left: tendon 1 at 0.6\ntip {dy:+.2f} m in y"),
+        ("bend_right", T - 1, render.REAR_VIEW, "robot's right: tendon 3 at 0.6\ntip {dy:+.2f} m in y"),
+    ],
+    "curl": [
+        ("curl_away", T - 1, render.SIDE_VIEW, "tendon 2 at 1.0 (away)\nbackbone turns {turn:.0f}°"),
+        ("curl_left", T - 1, render.REAR_VIEW, "tendon 1 at 1.0 (left)\nbackbone turns {turn:.0f}°"),
+    ],
+    "retract": [
+        ("retract", 0, render.SIDE_VIEW, "all slack (t = 0)\nlength {length:.2f} m"),
+        ("retract", T - 1, render.SIDE_VIEW, "all four at 1.0 (co-contraction)\nlength {length:.2f} m"),
+    ],
+    "extend": [
+        ("extend", 74, render.SIDE_VIEW, "retracted (t = 2.5 s)\nlength {length:.2f} m"),
+        ("extend", T - 1, render.SIDE_VIEW, "all released to slack (t = 5 s)\nlength {length:.2f} m"),
+    ],
+    "touch": [
+        ("touch", 75, render.SIDE_VIEW, "slow reach, tendon 0 at 0.5 (t = 2.5 s)\n{user:.3f} m from the user"),
+        (
+            "touch",
+            T - 1,
+            render.SIDE_VIEW,
+            "tendon 0 at 1.0 (t = 5 s): {touches}\n{user:.3f} m from the user, {force:.2f} N",
+        ),
+    ],
 }
 COMPOSITE = [("bend", 0), ("bend", 2), ("curl", 0), ("retract", 1), ("extend", 1), ("touch", 1)]
 
@@ -95,8 +113,7 @@ def _panels(family_panels, commands, rollouts):
 
 def _grid(panels, path, ncols: int, title: str = "", heading=None):
     nrows = -(-len(panels) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.5 * nrows), squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.5 * nrows), squeeze=False, layout="constrained")
     for k, ax in enumerate(axes.flat):
         ax.set_axis_off()
         if k < len(panels):
@@ -115,18 +132,31 @@ def primitives(out: Path = DOCS / "trunk") -> list[str]:
     r = sim.rollout(np.stack([commands[n] for n in names]))
     if not (r.stable.all() and sim.feasible(r).all()):
         raise RuntimeError("a primitive command is unstable or infeasible on the trunk")
-    rollouts = {n: sim.Rollout(**{f: getattr(r, f)[i:i + 1] for f in sim.Rollout.__dataclass_fields__})
-                for i, n in enumerate(names)}
+    rollouts = {
+        n: sim.Rollout(**{f: getattr(r, f)[i : i + 1] for f in sim.Rollout.__dataclass_fields__})
+        for i, n in enumerate(names)
+    }
     written = []
     for family, family_panels in FAMILIES.items():
         panels = _panels(family_panels, commands, rollouts)
-        written.append(_grid(panels, out / f"{family}.png", ncols=len(panels),
-                             title=f"{family} (thin blue rod: the trunk at rest, all tendons slack)"))
+        written.append(
+            _grid(
+                panels,
+                out / f"{family}.png",
+                ncols=len(panels),
+                title=f"{family} (thin blue rod: the trunk at rest, all tendons slack)",
+            )
+        )
     picks = [FAMILIES[f][k] for f, k in COMPOSITE]
-    written.append(_grid(_panels(picks, commands, rollouts), out / "primitives.png", ncols=3,
-                         heading=[f.upper() for f, _ in COMPOSITE],
-                         title="Elephant primitives on the simulated trunk (held tendon commands; "
-                               "thin blue rod: rest posture)"))
+    written.append(
+        _grid(
+            _panels(picks, commands, rollouts),
+            out / "primitives.png",
+            ncols=3,
+            heading=[f.upper() for f, _ in COMPOSITE],
+            title="Elephant primitives on the simulated trunk (held tendon commands; thin blue rod: rest posture)",
+        )
+    )
     return written
 
 
@@ -155,8 +185,11 @@ def grounding_figure(path, texts=GROUNDING_TEXTS, top: int = 5):
         ax.set_xlim(0, max(1.0, scores.max() + 0.05))
         ax.set_xlabel("intent score (similarity to spec C)", fontsize=8)
         ax.tick_params(labelsize=8)
-        ax.set_title("\n".join(textwrap.wrap(f'"{text}"', 42))
-                     + f"\n→ ({g.intent}, {g.intensity}), confidence {g.confidence:.2f}", fontsize=8.5)
+        ax.set_title(
+            "\n".join(textwrap.wrap(f'"{text}"', 42))
+            + f"\n→ ({g.intent}, {g.intensity}), confidence {g.confidence:.2f}",
+            fontsize=8.5,
+        )
     return save(fig, path)
 
 
@@ -188,8 +221,10 @@ def splines_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_TU
     b.set_xlabel("execution time τ")
     b.set_ylabel("tendon pull u")
     b.legend(fontsize=7, loc="upper left", ncol=2)
-    b.set_title(f"{intent} / {intensity} (library record): 4 × {num_controls} controls (dots) → "
-                f"{u.shape[0]} × 4 actuation", fontsize=9)
+    b.set_title(
+        f"{intent} / {intensity} (library record): 4 × {num_controls} controls (dots) → {u.shape[0]} × 4 actuation",
+        fontsize=9,
+    )
     return save(fig, path)
 
 
@@ -214,9 +249,11 @@ def sampling_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_T
         ax.set_ylim(-0.03, 1.03)
     axes[0].set_ylabel("tendon pull u")
     div = float(metrics.pairwise_diversity(U))
-    fig.suptitle(f"jg.sample(key, {intent!r}, {intensity!r}, num_samples={num_samples}): {num_samples} samples "
-                 f"(colour) and the {len(demos)} training demonstrations (black dashed); diversity {div:.3f}",
-                 fontsize=9)
+    fig.suptitle(
+        f"jg.sample(key, {intent!r}, {intensity!r}, num_samples={num_samples}): {num_samples} samples "
+        f"(colour) and the {len(demos)} training demonstrations (black dashed); diversity {div:.3f}",
+        fontsize=9,
+    )
     return save(fig, path, colors=256)
 
 
@@ -236,17 +273,26 @@ def trunk_figure(path, intent: str = STAGE_TUPLE[0], intensity: str = STAGE_TUPL
             ax.set_axis_off()
             if row == 0:
                 pulls = " ".join(f"{x:.2f}" for x in u[t])
-                ax.set_title(f"t = {t * sim.CONTROL_DT:.1f} s   u = [{pulls}]\n"
-                             f"{r.user_distance[0, t]:.2f} m from the user", fontsize=8)
-    fig.suptitle(f"{intent} / {intensity}, sample 0 on the trunk (top: side view, user on the right; bottom: rear "
-                 "view, robot's left on the left; thin blue rod: rest posture)", fontsize=9)
+                ax.set_title(
+                    f"t = {t * sim.CONTROL_DT:.1f} s   u = [{pulls}]\n{r.user_distance[0, t]:.2f} m from the user",
+                    fontsize=8,
+                )
+    fig.suptitle(
+        f"{intent} / {intensity}, sample 0 on the trunk (top: side view, user on the right; bottom: rear "
+        "view, robot's left on the left; thin blue rod: rest posture)",
+        fontsize=9,
+    )
     return save(fig, path, dpi=100, colors=PNG_COLORS)
 
 
 def stages(out: Path = DOCS / "stages") -> list[str]:
     """One figure per pipeline stage (SPEC §1) for docs/how_it_works.md."""
-    return [grounding_figure(out / "grounding.png"), splines_figure(out / "splines.png"),
-            sampling_figure(out / "sampling.png"), trunk_figure(out / "sim.png")]
+    return [
+        grounding_figure(out / "grounding.png"),
+        splines_figure(out / "splines.png"),
+        sampling_figure(out / "sampling.png"),
+        trunk_figure(out / "sim.png"),
+    ]
 
 
 CLI_TEXT = "User seems sad; respond calmly with a gentle touch"
@@ -265,8 +311,10 @@ def cli_pictures(out: Path = DOCS / "cli", text: str = CLI_TEXT) -> list[str]:
     with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):
         if cli.main([text, "--samples", "8", "--quiet", "--out", tmp]) != 0:
             raise RuntimeError("the command line failed")
-        return [str(shutil.copyfile(Path(tmp) / name, out / name))
-                for name in ("tendons.png", "keyframes.png", "posture.png")]
+        return [
+            str(shutil.copyfile(Path(tmp) / name, out / name))
+            for name in ("tendons.png", "keyframes.png", "posture.png")
+        ]
 
 
 def main(argv=None) -> int:

@@ -7,6 +7,7 @@ curves of the 4 realizations at the pronounced intensity and the simulated motio
 one *axis* figure per intent: tendon curves and the simulated posture per variant (rows) and per
 intensity (columns), so the one-to-many variants and the intensity axis can be seen.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,16 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import library, load_library, sim
-
-from jgrounding.evaluation import metrics
-
-from jgrounding.library import primitives
-
-from jgrounding.sim import render
-
-from jgrounding.library import screening
-from jgrounding.io import write_atomic
 from jgrounding.apps.plotting import plot_tendons, plt, save
+from jgrounding.evaluation import metrics
+from jgrounding.io import write_atomic
+from jgrounding.library import primitives, screening
+from jgrounding.sim import render
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -63,8 +59,15 @@ def distance_figure(lib, path):
     for (name, d), color in zip(groups.items(), ("tab:blue", "tab:orange", "tab:green")):
         # Within-tuple and adjacent-intensity distances overlap: outlines keep both visible.
         ax.hist(d, bins=bins, density=True, color=color, alpha=0.2)
-        ax.hist(d, bins=bins, density=True, color=color, histtype="step", lw=1.6,
-                label=f"{name} (mean {d.mean():.3f}, {len(d)} pairs)")
+        ax.hist(
+            d,
+            bins=bins,
+            density=True,
+            color=color,
+            histtype="step",
+            lw=1.6,
+            label=f"{name} (mean {d.mean():.3f}, {len(d)} pairs)",
+        )
     ax.axvline(metrics.TAU_RMS, color="k", ls="--", lw=1.2, label=f"τ_rms = {metrics.TAU_RMS}")
     ax.set_xlabel("RMS distance between library trajectories")
     ax.set_ylabel("density")
@@ -77,8 +80,9 @@ def distance_figure(lib, path):
 def intent_figure(lib, m: int, z: int, path):
     """Tendon curves of the tuple's 4 realizations and the simulated motion of the first (two views)."""
     u = np.concatenate([lib.train.u, lib.heldout.u])
-    sel = (np.concatenate([lib.train.intent, lib.heldout.intent]) == m) & \
-          (np.concatenate([lib.train.intensity, lib.heldout.intensity]) == z)
+    sel = (np.concatenate([lib.train.intent, lib.heldout.intent]) == m) & (
+        np.concatenate([lib.train.intensity, lib.heldout.intensity]) == z
+    )
     reals = u[sel]
     fig = plt.figure(figsize=(15, 5.2), layout="constrained")
     grid = fig.add_gridspec(2, 1 + len(FRAME_STEPS), width_ratios=(1.05,) + (1,) * len(FRAME_STEPS))
@@ -89,8 +93,10 @@ def intent_figure(lib, m: int, z: int, path):
     fig.legend(*ax.get_legend_handles_labels(), fontsize=8, ncol=4, loc="outside lower center")
     for t in FRAME_STEPS:
         ax.axvline(t / (u.shape[1] - 1), color="k", lw=0.5, ls=":")
-    ax.set_title(f"{INTENTS[m]} / {INTENSITIES[z]}: {len(reals)} realizations\n(bold: the one simulated; "
-                 "dotted: frame times)", fontsize=8)
+    ax.set_title(
+        f"{INTENTS[m]} / {INTENSITIES[z]}: {len(reals)} realizations\n(bold: the one simulated; dotted: frame times)",
+        fontsize=8,
+    )
     for row, view in enumerate(render.BOTH_VIEWS):
         frames, _ = render.frames(reals[0], list(FRAME_STEPS), view, labels=True, ghost=True)
         for i, (f, t) in enumerate(zip(frames, FRAME_STEPS)):
@@ -135,16 +141,21 @@ def axis_figure(lib, m: int, path):
             a.set_axis_off()
     name = INTENTS[m]
     why = primitives.VARIANTS.get(name, "one form (left/right tilt of the tip only)")
-    fig.suptitle(f"{name}: variants ({why}) × intensity; posture at t = {AXIS_STEP * sim.CONTROL_DT:.1f} s, "
-                 "side view (user on the right) | rear view (robot's left on the left)", fontsize=9)
+    fig.suptitle(
+        f"{name}: variants ({why}) × intensity; posture at t = {AXIS_STEP * sim.CONTROL_DT:.1f} s, "
+        "side view (user on the right) | rear view (robot's left on the left)",
+        fontsize=9,
+    )
     return save(fig, path, dpi=80, colors=256)
 
 
 def brackets_table(b: dict) -> str:
     from experiments.references import table
 
-    return table(b) + (f"\n\nHeld-out response texts: {b['heldout_4gram_overlap']:.1%} of their word 4-grams occur in "
-                       "training responses of the same intent (SPEC §3: ≤ 30%).")
+    return table(b) + (
+        f"\n\nHeld-out response texts: {b['heldout_4gram_overlap']:.1%} of their word 4-grams occur in "
+        "training responses of the same intent (SPEC §3: ≤ 30%)."
+    )
 
 
 def write(lib=None) -> Path:
@@ -158,15 +169,20 @@ def write(lib=None) -> Path:
     b = library.brackets(lib, metrics.TAUS)
     bad = library.bracket_violations(b, metrics.TAU_RMS)
     mid = library.variant_midpoint(lib, metrics.TAUS)
-    hedge = "" if not mid else (
-        f"\n\n**Beside the brackets: a hedge.** On the {mid['tuples']} one-to-many tuples, the midpoint of the two "
-        "variants' training means (weighted equally) succeeds " + ", ".join(f"{v:.3f} at τ = {t:.2f}" for t, v in
-                                                                         mid["success"].items()) +
-        ". The variants are ≈ 0.6 RMS apart (mirror images with P = 4 controls cannot be much farther: a sustained "
-        "full left/right difference is ≈ 0.67), so their midpoint lies within τ = 0.35 of both. The tuple mean fails "
-        "only because the training split is 1 + 2 (it sits 2/3 of the way to the other variant); a generator that "
-        "hedges between the variants succeeds. Success at τ = 0.35 therefore rewards covering the variants *or* "
-        "hedging between them; coverage and diversity tell the two apart.")
+    hedge = (
+        ""
+        if not mid
+        else (
+            f"\n\n**Beside the brackets: a hedge.** On the {mid['tuples']} one-to-many tuples, the midpoint of the two "
+            "variants' training means (weighted equally) succeeds "
+            + ", ".join(f"{v:.3f} at τ = {t:.2f}" for t, v in mid["success"].items())
+            + ". The variants are ≈ 0.6 RMS apart (mirror images with P = 4 controls cannot be much farther: a sustained "
+            "full left/right difference is ≈ 0.67), so their midpoint lies within τ = 0.35 of both. The tuple mean fails "
+            "only because the training split is 1 + 2 (it sits 2/3 of the way to the other variant); a generator that "
+            "hedges between the variants succeeds. Success at τ = 0.35 therefore rewards covering the variants *or* "
+            "hedging between them; coverage and diversity tell the two apart."
+        )
+    )
     variants = "\n".join(f"- **{m}**: {why}." for m, why in primitives.VARIANTS.items())
 
     card = lib.meta
@@ -178,17 +194,18 @@ def write(lib=None) -> Path:
     var = primitives.Variation()
     single = ", ".join(m for m in INTENTS if m not in primitives.VARIANTS)
     below = {k: float(np.mean(v <= metrics.TAU_RMS)) for k, v in groups.items()}
-    text = f"""# Library card
+    text = (
+        f"""# Library card
 
-_Generated by `python -m tools.library_card` from `{Path(lib.path).name}` (sha256 `{card['sha256'][:16]}…`)._
+_Generated by `python -m tools.library_card` from `{Path(lib.path).name}` (sha256 `{card["sha256"][:16]}…`)._
 
-**What it is.** {card['num_records']} expert (actuation, tuple) pairs: 16 intents × 4 intensities × 4
-realizations, split tuple-balanced into {card['num_train']} train / {card['num_heldout']} held-out (one held-out
-realization per tuple). Regenerate with `{card['regenerate']}` (seed {card['config']['seed']}); the files are
+**What it is.** {card["num_records"]} expert (actuation, tuple) pairs: 16 intents × 4 intensities × 4
+realizations, split tuple-balanced into {card["num_train"]} train / {card["num_heldout"]} held-out (one held-out
+realization per tuple). Regenerate with `{card["regenerate"]}` (seed {card["config"]["seed"]}); the files are
 byte-identical for a seed.
 
-**Design** (Sec. III-C.1, SPEC §3; library version `{card.get('library_version', '1')}`, content sha256
-`{card.get('content_sha256', '')[:16]}…`). A trajectory is four tendon pulls at four key moments, built from the elephant
+**Design** (Sec. III-C.1, SPEC §3; library version `{card.get("library_version", "1")}`, content sha256
+`{card.get("content_sha256", "")[:16]}…`). A trajectory is four tendon pulls at four key moments, built from the elephant
 primitives (bending toward a side, curling, co-contraction retraction, release/extension, compliant contact).
 
 *One-to-many.* {len(primitives.VARIANTS)} intents have two distinct valid variants, anchored on mirror images across the
@@ -212,7 +229,7 @@ apart at every intensity. The ends were refined into a code (`python -m tools.de
 `jgrounding/library/signatures.py`) in which two intents at one intensity, two variants, and two intensity levels two
 apart are far in RMS while each anchor keeps its defining pulls. A candidate interpolates the key poses
 (cosine-eased) with per-realization amplitude (±{var.amplitude:.0%}), timing (±{var.timing:.2f}) and key-pose noise
-(σ {var.jitter:.2f}). Candidates are reduced by Eq. (ci) to P = {card['config']['num_controls']} Catmull–Rom controls,
+(σ {var.jitter:.2f}). Candidates are reduced by Eq. (ci) to P = {card["config"]["num_controls"]} Catmull–Rom controls,
 reconstructed, passed through the safety gate, and screened: bounds and slew, smoothness (jerk), simulation on the trunk
 (stable, contact force ≤ {sim.MAX_CONTACT_FORCE} N, tip ≤ {sim.MAX_TIP_SPEED_NEAR_USER} m/s within
 {sim.NEAR_USER_DISTANCE} m of the user), and a semantic rule on the simulated shape per intent, graded by intensity
@@ -222,8 +239,8 @@ reconstructed, passed through the safety gate, and screened: bounds and slew, sm
 *Held-out responses.* The held-out record of each tuple takes its response texts from a separate pool of situations,
 plans and intensity phrasings (`jgrounding/library/responses.py`, `HELDOUT_*`) never used for a training pair.
 
-**Acceptance**: {card['candidates_accepted']} of {card['candidates_tried']} candidates passed
-(per check: {', '.join(f'{k} {v}' for k, v in card['passed_per_check'].items())}).
+**Acceptance**: {card["candidates_accepted"]} of {card["candidates_tried"]} candidates passed
+(per check: {", ".join(f"{k} {v}" for k, v in card["passed_per_check"].items())}).
 
 {chr(10).join(rows)}
 
@@ -232,15 +249,15 @@ plans and intensity phrasings (`jgrounding/library/responses.py`, `HELDOUT_*`) n
 **Brackets of the metric** (`python -m experiments.references`): expected success over the library (every replay
 in each pool against each held-out target, no sampling), at every τ of the sweep. SPEC §3 ranges at τ = 0.35: oracle
 0.45–0.92, tuple mean ≥ 0.10 below the oracle, wrong intent ≤ 0.10, far intensity ≤ 0.30, adjacent ≤ 0.80 —
-{'all met' if not bad else 'NOT met: ' + '; '.join(bad)}.
+{"all met" if not bad else "NOT met: " + "; ".join(bad)}.
 
 {brackets_table(b)}{hedge}
 
-Mean RMS distance (share of pairs within τ = {metrics.TAU_RMS}): within a tuple {groups['within tuple'].mean():.3f}
-({below['within tuple']:.0%}); different intent at the same intensity
-{groups['different intent, same intensity'].mean():.3f} ({below['different intent, same intensity']:.0%}); same intent,
-adjacent intensity {groups['same intent, adjacent intensity'].mean():.3f}
-({below['same intent, adjacent intensity']:.0%}).
+Mean RMS distance (share of pairs within τ = {metrics.TAU_RMS}): within a tuple {groups["within tuple"].mean():.3f}
+({below["within tuple"]:.0%}); different intent at the same intensity
+{groups["different intent, same intensity"].mean():.3f} ({below["different intent, same intensity"]:.0%}); same intent,
+adjacent intensity {groups["same intent, adjacent intensity"].mean():.3f}
+({below["same intent, adjacent intensity"]:.0%}).
 
 ![distances](library/rms_distributions.png)
 
@@ -249,12 +266,17 @@ first one (bold) at four times from two views — top: side view, the user on th
 left on the left; the thin blue rod is the trunk at rest. Regenerate the figures with
 `python -m tools.library_card`.
 
-""" + "\n".join(f"![{m}](library/intent_{m}.png)" for m in INTENTS) + """
+"""
+        + "\n".join(f"![{m}](library/intent_{m}.png)" for m in INTENTS)
+        + """
 
 Variants × intensity per intent: tendon curves of each variant's realizations (rows) at each intensity (columns), and
 the simulated posture of one of them two thirds into the motion (side and rear views; thin blue rod: rest).
 
-""" + "\n".join(f"![{m} axis](library/axis_{m}.png)" for m in INTENTS) + "\n"
+"""
+        + "\n".join(f"![{m} axis](library/axis_{m}.png)" for m in INTENTS)
+        + "\n"
+    )
     path = write_atomic(DOCS / "library_card.md", text)
     print(f"wrote {path} and {2 * len(INTENTS) + 2} figures in {out}")
     return path

@@ -6,6 +6,7 @@ simulator, 150 steps) played over its own duration (4.6-5.4 s), read by a 100 Hz
 jitter, in millimetres of cable pull (each tendon with its own slack offset and full-pull travel), with
 sensor-like Gaussian noise (0.03 mm). Deterministic in ``--seed``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -58,8 +59,9 @@ def main(argv=None) -> int:
         for r, i in enumerate(idx):
             file = f"{name}_{level}_{r + 1:02d}.csv"
             write_atomic(Path(args.out) / file, recording(split.u[i], float(rng.uniform(4.6, 5.4)), rng))
-            entries.append({"file": file, "intent": name, "intensity": level, "realization": r,
-                            "texts": list(split.texts[i][:2])})
+            entries.append(
+                {"file": file, "intent": name, "intensity": level, "realization": r, "texts": list(split.texts[i][:2])}
+            )
     manifest = {"limits": [list(p) for p in LIMITS_MM], "time_column": "time", "demonstrations": entries}
     write_atomic(Path(args.out) / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     print(f"wrote {len(entries)} recordings and manifest.json to {args.out}")

@@ -6,6 +6,7 @@ sampling through ``jg.sample(..., checkpoint=...)`` and the CLI's command stream
 output into ``docs/own_data/*.png`` and prints the numbers the page quotes. ``--steps`` sets the
 training length (default 2000, about a minute on two CPU cores).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -66,8 +67,12 @@ def library_figure(lib, path: Path, samples: dict | None = None) -> str:
         else:
             plotting.plot_tendons(ax, samples[(m, z)], alpha=0.35, legend=False, lw=0.8, reference=held)
         ax.set_title(f"{INTENTS[m]} / {INTENSITIES[z]}", fontsize=9)
-    fig.suptitle("imported library: train realizations (solid), held-out (dashed)" if samples is None else
-                 "samples of the trained checkpoint (8 per tuple) and the held-out realization (dashed)", fontsize=9)
+    fig.suptitle(
+        "imported library: train realizations (solid), held-out (dashed)"
+        if samples is None
+        else "samples of the trained checkpoint (8 per tuple) and the held-out realization (dashed)",
+        fontsize=9,
+    )
     fig.tight_layout()
     return plotting.save(fig, path)
 
@@ -84,8 +89,11 @@ def commands_figure(csv_path: Path, path: Path) -> str:
         ax.step(t, u[:, j], where="post", lw=0.9, color=plotting.TENDON_COLORS[j], label=header["channels"][j])
     ax.set_xlabel(f"time (s), {header['control_rate_hz']:.0f} Hz control rate")
     ax.set_ylabel("normalized pull")
-    ax.set_title(f"commands.csv: ({header['intent']}, {header['intensity']}), bounds {header['bounds']}, "
-                 f"slew <= {header['max_slew_per_step']}/step", fontsize=9)
+    ax.set_title(
+        f"commands.csv: ({header['intent']}, {header['intensity']}), bounds {header['bounds']}, "
+        f"slew <= {header['max_slew_per_step']}/step",
+        fontsize=9,
+    )
     ax.legend(fontsize=7, ncol=4, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     return plotting.save(fig, path)
 
@@ -96,10 +104,31 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     lib_path, ckpt, cli_out = WORK / "my_library.npz", WORK / "mine", WORK / "cli"
     run("-m", "jgrounding.library", "import", FOLDER, "--out", str(lib_path), "--controls", "4", "--simulate")
-    run("-m", "experiments.train", "--library", str(lib_path), "--out", str(ckpt), "--steps", str(args.steps),
-        "--chunk", str(min(500, args.steps)))
-    run("-m", "jgrounding", "--intent", SHOWN[0], "--intensity", SHOWN[1], "--checkpoint", str(ckpt),
-        "--out", str(cli_out), "--no-render")
+    run(
+        "-m",
+        "experiments.train",
+        "--library",
+        str(lib_path),
+        "--out",
+        str(ckpt),
+        "--steps",
+        str(args.steps),
+        "--chunk",
+        str(min(500, args.steps)),
+    )
+    run(
+        "-m",
+        "jgrounding",
+        "--intent",
+        SHOWN[0],
+        "--intensity",
+        SHOWN[1],
+        "--checkpoint",
+        str(ckpt),
+        "--out",
+        str(cli_out),
+        "--no-render",
+    )
 
     import jax
 
@@ -116,11 +145,16 @@ def main(argv=None) -> int:
         samples[(m, z)] = u
         held = lib.heldout.u[(lib.heldout.intent == m) & (lib.heldout.intensity == z)][0]
         r = np.asarray(metrics.rms(u, held[None]))
-        print(f"{INTENTS[m]}/{INTENSITIES[z]}: RMS of 8 samples to the held-out realization: mean {r.mean():.3f}, "
-              f"within tau = {metrics.TAU_RMS}: {int((r <= metrics.TAU_RMS).sum())}/8")
-    for path in (recording_figure(FIGURES / "recording.png"), library_figure(lib, FIGURES / "imported.png"),
-                 library_figure(lib, FIGURES / "samples.png", samples),
-                 commands_figure(ROOT / cli_out / "commands.csv", FIGURES / "commands.png")):
+        print(
+            f"{INTENTS[m]}/{INTENSITIES[z]}: RMS of 8 samples to the held-out realization: mean {r.mean():.3f}, "
+            f"within tau = {metrics.TAU_RMS}: {int((r <= metrics.TAU_RMS).sum())}/8"
+        )
+    for path in (
+        recording_figure(FIGURES / "recording.png"),
+        library_figure(lib, FIGURES / "imported.png"),
+        library_figure(lib, FIGURES / "samples.png", samples),
+        commands_figure(ROOT / cli_out / "commands.csv", FIGURES / "commands.png"),
+    ):
         print("wrote", path)
     return 0
 

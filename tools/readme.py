@@ -4,6 +4,7 @@
 ``<!-- results:start -->`` and ``<!-- results:end -->`` in README.md with results/ablation.md,
 results/sweep_tau_rms.md (when present) and the reference baselines.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,7 +13,10 @@ ROOT = Path(__file__).resolve().parent.parent
 START, END = "<!-- results:start -->", "<!-- results:end -->"
 SECTIONS = (
     ("ablation.md", "### Table II: ablation"),
-    ("fig4_tendons.png", "Generated commands vs the library reference for two held-out tuples (like the paper's Fig. 4):"),
+    (
+        "fig4_tendons.png",
+        "Generated commands vs the library reference for two held-out tuples (like the paper's Fig. 4):",
+    ),
     ("diversity.png", "Thirty samples of one tuple (emphatic embracing) per generator:"),
     ("sweep_tau_rms.md", "### Success across tolerances (sweep tau_rms)"),
     ("sweep_tau_rms.png", ""),
@@ -73,8 +77,12 @@ def update(readme: Path = ROOT / "README.md", versions: Path = ROOT / "docs" / "
     bench = [ROOT / "results" / n for n in ("bench_trunk.md", "bench_trunk_compile.md")]
     if versions.exists() and any(p.exists() for p in bench):
         body = "\n\n".join(p.read_text().strip() for p in bench if p.exists())
-        write_atomic(versions, _replace_block(versions.read_text(), "<!-- bench:trunk:start -->",
-                                              "<!-- bench:trunk:end -->", body, versions))
+        write_atomic(
+            versions,
+            _replace_block(
+                versions.read_text(), "<!-- bench:trunk:start -->", "<!-- bench:trunk:end -->", body, versions
+            ),
+        )
         print(f"updated the trunk benchmark in {versions}")
 
 

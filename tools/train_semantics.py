@@ -9,6 +9,7 @@ configuration from a small grid, fits the softmax temperature (NLL) and the conf
 one at which the dev groundings kept as confident reach ``TARGET_ACCURACY``. The test split is never read here.
 Deterministic: fixed keys, full-batch training.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,7 +28,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 ROOT = Path(__file__).resolve().parent.parent
 TRAIN_DIR = ROOT / "assets" / "semantics_train"
 DEV = ROOT / "assets" / "semantics_eval" / "dev.jsonl"
-TARGET_ACCURACY = 0.95     # intent accuracy the confident dev groundings must reach
+TARGET_ACCURACY = 0.95  # intent accuracy the confident dev groundings must reach
 GENERATED = "generated.jsonl"
 # Model selection on dev (intent accuracy + intensity exact): linear vs. small-MLP intensity scorer, and how much
 # the generated corpus weighs against the written one. Chosen from a first look on dev: 128 hidden units, the
@@ -61,10 +62,16 @@ def evaluate(head: sh.Head, x, rows) -> dict:
     m, z, conf = sh.decide(p_m, p_z)
     intent, intensity = labels(rows)
     ok = m == intent
-    return {"intent_accuracy": float(ok.mean()), "intensity_exact": float(np.mean(z == intensity)),
-            "intensity_within_one": float(np.mean(np.abs(z - intensity) <= 1)),
-            "ece": sh.expected_calibration_error(conf, ok), "confidence": conf, "correct": ok, "pred": m,
-            "pred_intensity": z}
+    return {
+        "intent_accuracy": float(ok.mean()),
+        "intensity_exact": float(np.mean(z == intensity)),
+        "intensity_within_one": float(np.mean(np.abs(z - intensity) <= 1)),
+        "ece": sh.expected_calibration_error(conf, ok),
+        "confidence": conf,
+        "correct": ok,
+        "pred": m,
+        "pred_intensity": z,
+    }
 
 
 def calibrate_threshold(conf, correct, target=TARGET_ACCURACY) -> float:
@@ -87,7 +94,7 @@ def fit(x, rows, generated, hidden, use_eq3, gen_weight, z_hidden=0, steps=400, 
     for c in np.unique(intent):
         w[intent == c] /= w[intent == c].sum()
     w = w / w.mean()
-    feats = x if use_eq3 else x[:, :sh.EMBED_DIM]
+    feats = x if use_eq3 else x[:, : sh.EMBED_DIM]
     params, _ = sh.train(jax.random.key(seed), feats, intent, intensity, w.astype(np.float32), cfg)
     return jax.tree.map(np.asarray, params), cfg
 
@@ -107,30 +114,45 @@ def main(argv=None) -> int:
     for g in GRID:
         params, cfg = fit(x, rows, generated, **g)
         head = sh.Head(params, cfg, 1.0, 0.5, {})
-        r = evaluate(head, x_dev if cfg.use_eq3 else x_dev[:, :sh.EMBED_DIM], dev)
+        r = evaluate(head, x_dev if cfg.use_eq3 else x_dev[:, : sh.EMBED_DIM], dev)
         results.append((r["intent_accuracy"] + r["intensity_exact"], g, params, cfg))
-        print(f"  {g}: dev intent {r['intent_accuracy']:.3f}  intensity exact {r['intensity_exact']:.3f}"
-              f"  within one {r['intensity_within_one']:.3f}")
+        print(
+            f"  {g}: dev intent {r['intent_accuracy']:.3f}  intensity exact {r['intensity_exact']:.3f}"
+            f"  within one {r['intensity_within_one']:.3f}"
+        )
     _, best, params, cfg = max(results, key=lambda t: t[0])  # first of equals: the grid's order breaks ties
-    xd = x_dev if cfg.use_eq3 else x_dev[:, :sh.EMBED_DIM]
+    xd = x_dev if cfg.use_eq3 else x_dev[:, : sh.EMBED_DIM]
     uncalibrated = evaluate(sh.Head(params, cfg, 1.0, 0.5, {}), xd, dev)
     temperature = sh.fit_temperature(lambda t: np.asarray(sh.predict(params, xd, t)[0]), dev_intent)
     r = evaluate(sh.Head(params, cfg, temperature, 0.5, {}), xd, dev)
     threshold = calibrate_threshold(r["confidence"], r["correct"])
     kept = r["confidence"] >= threshold
-    digests = {path.name: hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-               for path in sorted(TRAIN_DIR.glob("*.jsonl"))}
-    meta = {"temperature": temperature, "threshold": threshold, "selected": best, "train_files": digests,
-            "dev_file": hashlib.sha256(Path(args.dev).read_bytes()).hexdigest()[:16],
-            "dev_intent_accuracy": r["intent_accuracy"], "dev_intensity_exact": r["intensity_exact"],
-            "dev_intensity_within_one": r["intensity_within_one"], "dev_ece": r["ece"],
-            "dev_ece_uncalibrated": uncalibrated["ece"], "dev_coverage": float(kept.mean()),
-            "dev_confident_accuracy": float(r["correct"][kept].mean()), "target_accuracy": TARGET_ACCURACY,
-            "config": dataclasses.asdict(cfg), "params_digest": sh.digest(params)}
+    digests = {
+        path.name: hashlib.sha256(path.read_bytes()).hexdigest()[:16] for path in sorted(TRAIN_DIR.glob("*.jsonl"))
+    }
+    meta = {
+        "temperature": temperature,
+        "threshold": threshold,
+        "selected": best,
+        "train_files": digests,
+        "dev_file": hashlib.sha256(Path(args.dev).read_bytes()).hexdigest()[:16],
+        "dev_intent_accuracy": r["intent_accuracy"],
+        "dev_intensity_exact": r["intensity_exact"],
+        "dev_intensity_within_one": r["intensity_within_one"],
+        "dev_ece": r["ece"],
+        "dev_ece_uncalibrated": uncalibrated["ece"],
+        "dev_coverage": float(kept.mean()),
+        "dev_confident_accuracy": float(r["correct"][kept].mean()),
+        "target_accuracy": TARGET_ACCURACY,
+        "config": dataclasses.asdict(cfg),
+        "params_digest": sh.digest(params),
+    }
     sh.save(args.out, params, cfg, meta)
     print(f"selected {best}; temperature {temperature:.2f}; ECE on dev {uncalibrated['ece']:.3f} -> {r['ece']:.3f}")
-    print(f"threshold {threshold:.2f}: {kept.mean():.0%} of dev kept as confident, intent accuracy "
-          f"{r['correct'][kept].mean():.3f} among them")
+    print(
+        f"threshold {threshold:.2f}: {kept.mean():.0%} of dev kept as confident, intent accuracy "
+        f"{r['correct'][kept].mean():.3f} among them"
+    )
     print(f"wrote {args.out} (params {meta['params_digest']})")
     return 0
 

@@ -44,12 +44,15 @@ def basis_np(num_steps: int, num_controls: int) -> np.ndarray:
     seg = np.minimum(np.floor(x).astype(int), seg_count - 1)
     s = x - seg
     # Catmull-Rom weights on (p_{i-1}, p_i, p_{i+1}, p_{i+2}) at local parameter s.
-    w = 0.5 * np.stack([
-        -s + 2 * s**2 - s**3,
-        2 - 5 * s**2 + 3 * s**3,
-        s + 4 * s**2 - 3 * s**3,
-        -(s**2) + s**3,
-    ], axis=-1)  # (T, 4)
+    w = 0.5 * np.stack(
+        [
+            -s + 2 * s**2 - s**3,
+            2 - 5 * s**2 + 3 * s**3,
+            s + 4 * s**2 - 3 * s**3,
+            -(s**2) + s**3,
+        ],
+        axis=-1,
+    )  # (T, 4)
     # Extended control vector e = [phantom_left, c_0..c_{P-1}, phantom_right] = E @ c.
     ext = np.zeros((num_controls + 2, num_controls))
     ext[1:-1] = np.eye(num_controls)
@@ -57,7 +60,7 @@ def basis_np(num_steps: int, num_controls: int) -> np.ndarray:
     ext[-1, -1], ext[-1, -2] = 2.0, -1.0
     basis = np.zeros((num_steps, num_controls))
     for k in range(4):  # e index of the k-th neighbour is seg + k.
-        basis += w[:, k:k + 1] * ext[seg + k]
+        basis += w[:, k : k + 1] * ext[seg + k]
     return basis
 
 
@@ -87,8 +90,9 @@ def _as_real_array(x, name: str, shape: str) -> jax.Array:
     except (TypeError, ValueError) as e:
         raise type(e)(f"{name} must be a real numeric array of shape {shape}, got {type(x).__name__} ({e})") from None
     if not (jnp.issubdtype(arr.dtype, jnp.floating) or jnp.issubdtype(arr.dtype, jnp.integer) or arr.dtype == bool):
-        raise TypeError(f"{name} must be a real numeric array (float, integer or bool) of shape {shape}, "
-                        f"got dtype {arr.dtype}")
+        raise TypeError(
+            f"{name} must be a real numeric array (float, integer or bool) of shape {shape}, got dtype {arr.dtype}"
+        )
     return arr
 
 

@@ -60,37 +60,69 @@ def _current(text: str):
     except ValueError:
         values = []
     if not values or not all(0.0 <= v <= 1.0 for v in values):
-        raise argparse.ArgumentTypeError(f"--current must be 'rest' or comma-separated pulls in [0, 1], one per "
-                                         f"tendon (4 for the built-in trunk, e.g. 0.2,0,0.1,0), got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"--current must be 'rest' or comma-separated pulls in [0, 1], one per "
+            f"tendon (4 for the built-in trunk, e.g. 0.2,0,0.1,0), got {text!r}"
+        )
     return values
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m jgrounding",
-        description="Ground an open-vocabulary social response into soft-trunk tendon actuation.")
+        description="Ground an open-vocabulary social response into soft-trunk tendon actuation.",
+    )
     p.add_argument("text", nargs="?", help="the response to ground, e.g. 'User seems sad; respond calmly'")
     p.add_argument("--intent", choices=INTENTS, help="sample this intent directly (skips grounding)")
     p.add_argument("--intensity", choices=INTENSITIES, help="intensity to use with --intent")
-    p.add_argument("--samples", type=_positive_samples, default=8, metavar="K",
-                   help=f"number of trajectories to sample (1..{MAX_SAMPLES}, default 8)")
+    p.add_argument(
+        "--samples",
+        type=_positive_samples,
+        default=8,
+        metavar="K",
+        help=f"number of trajectories to sample (1..{MAX_SAMPLES}, default 8)",
+    )
     p.add_argument("--out", default="grounding_out", metavar="DIR", help="output folder (default grounding_out)")
-    p.add_argument("--backend", choices=("embedded", "cues", "mllm"), default="embedded",
-                   help="semantic reduction backend (default embedded, which escalates low confidence to the MLLM "
-                        "when JGROUNDING_MLLM_URL is set; cues: the first cue-list reducer; mllm needs the URL)")
+    p.add_argument(
+        "--backend",
+        choices=("embedded", "cues", "mllm"),
+        default="embedded",
+        help="semantic reduction backend (default embedded, which escalates low confidence to the MLLM "
+        "when JGROUNDING_MLLM_URL is set; cues: the first cue-list reducer; mllm needs the URL)",
+    )
     p.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     p.add_argument("--sampler", choices=("euler", "midpoint", "rk4"), default="euler")
-    p.add_argument("--steps", type=int, default=50, choices=(1, 2, 4, 8, 16, 25, 50, 100),
-                   help="flow integration steps S (default 50)")
-    p.add_argument("--current", type=_current, default="rest", metavar="rest|A,B,C,D",
-                   help="the robot's current command, blended from within the slew bound (default rest)")
-    p.add_argument("--screen", action="store_true",
-                   help="simulate candidates on the trunk and keep only feasible ones (reports the rejected)")
-    p.add_argument("--force", action="store_true",
-                   help="drive the grounded tuple even when its confidence is below the calibrated threshold")
+    p.add_argument(
+        "--steps",
+        type=int,
+        default=50,
+        choices=(1, 2, 4, 8, 16, 25, 50, 100),
+        help="flow integration steps S (default 50)",
+    )
+    p.add_argument(
+        "--current",
+        type=_current,
+        default="rest",
+        metavar="rest|A,B,C,D",
+        help="the robot's current command, blended from within the slew bound (default rest)",
+    )
+    p.add_argument(
+        "--screen",
+        action="store_true",
+        help="simulate candidates on the trunk and keep only feasible ones (reports the rejected)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="drive the grounded tuple even when its confidence is below the calibrated threshold",
+    )
     p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
-    p.add_argument("--checkpoint", metavar="DIR", help="sample from this checkpoint (e.g. one trained on your own "
-                   "library with experiments.train --library; default: the shipped one)")
+    p.add_argument(
+        "--checkpoint",
+        metavar="DIR",
+        help="sample from this checkpoint (e.g. one trained on your own "
+        "library with experiments.train --library; default: the shipped one)",
+    )
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--quiet", action="store_true", help="print only the output folder")
     mode.add_argument("--jsonl", action="store_true", help="print JSON lines (one per event)")
@@ -131,62 +163,107 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         g = ground(args.text, backend=args.backend)
         intent, intensity, confidence = g.intent, g.intensity, float(g.confidence)
-        say("tuple", f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
+        say(
+            "tuple",
+            f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
             f"backend {g.backend}  [{1e3 * (time.perf_counter() - t0):.0f} ms]",
-            intent=intent, intensity=intensity, confidence=confidence, backend=g.backend,
-            confident=g.confident)
+            intent=intent,
+            intensity=intensity,
+            confidence=confidence,
+            backend=g.backend,
+            confident=g.confident,
+        )
         hold = not g.confident and not args.force
         if not g.confident:
-            action = ("holding still instead: " + HOLD_STILL + " (use --force to drive the tuple)" if hold
-                      else "driving it anyway (--force)")
+            action = (
+                "holding still instead: " + HOLD_STILL + " (use --force to drive the tuple)"
+                if hold
+                else "driving it anyway (--force)"
+            )
             say("warning", f"warning: low confidence ({g.reason}); {action}", reason=g.reason, hold_still=hold)
 
     t0 = time.perf_counter()
-    kwargs = dict(num_samples=args.samples, sampler=args.sampler, steps=args.steps, checkpoint=args.checkpoint,
-                  current=args.current)
+    kwargs = dict(
+        num_samples=args.samples,
+        sampler=args.sampler,
+        steps=args.steps,
+        checkpoint=args.checkpoint,
+        current=args.current,
+    )
     if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give
-        shape = (150, 4) if args.checkpoint is None else np.shape(sampling.sample(
-            jax.random.key(args.seed), intent, intensity, num_samples=1, steps=1, checkpoint=args.checkpoint))[-2:]
+        shape = (
+            (150, 4)
+            if args.checkpoint is None
+            else np.shape(
+                sampling.sample(
+                    jax.random.key(args.seed), intent, intensity, num_samples=1, steps=1, checkpoint=args.checkpoint
+                )
+            )[-2:]
+        )
         u = np.zeros((args.samples,) + tuple(shape), np.float32)
         if args.current != "rest":
             if len(args.current) != shape[-1]:
                 raise ValueError(f"--current has {len(args.current)} values; the generator drives {shape[-1]} tendons")
             u[...] = np.asarray(args.current, np.float32)
-        say("hold", f"hold still: {u.shape[0]} constant command streams of shape {u.shape[1:]}",
-            num_samples=int(u.shape[0]), hold_still=True)
+        say(
+            "hold",
+            f"hold still: {u.shape[0]} constant command streams of shape {u.shape[1:]}",
+            num_samples=int(u.shape[0]),
+            hold_still=True,
+        )
     elif args.screen:
         res = sampling.screened(jax.random.key(args.seed), intent, intensity, **kwargs)
         u = res.u
-        say("screen", f"screened on the trunk ({res.engine}): {res.candidates} candidates simulated, "
+        say(
+            "screen",
+            f"screened on the trunk ({res.engine}): {res.candidates} candidates simulated, "
             f"{res.rejected} rejected as infeasible, {args.samples} kept "
-            f"[{1e3 * res.seconds:.0f} ms of simulation]", candidates=res.candidates, rejected=res.rejected,
-            engine=res.engine)
+            f"[{1e3 * res.seconds:.0f} ms of simulation]",
+            candidates=res.candidates,
+            rejected=res.rejected,
+            engine=res.engine,
+        )
     else:
         u = sampling.sample(jax.random.key(args.seed), intent, intensity, **kwargs)
     if not hold:
         u = np.asarray(u).reshape((-1,) + np.shape(u)[-2:])
-        say("sample", f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]}, blended in from "
+        say(
+            "sample",
+            f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]}, blended in from "
             f"{'rest' if args.current == 'rest' else args.current} "
-            f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]", num_samples=int(u.shape[0]))
+            f"[{1e3 * (time.perf_counter() - t0):.0f} ms incl. load/compile]",
+            num_samples=int(u.shape[0]),
+        )
 
     from jgrounding.sim import CONTROL_DT
 
-    meta = export.tuple_meta(vocabulary.intent_index(intent), vocabulary.intensity_index(intensity),
-                             text=args.text, seed=args.seed, sample=0, confidence=confidence,
-                             **({"hold_still": True} if hold else {}))
+    meta = export.tuple_meta(
+        vocabulary.intent_index(intent),
+        vocabulary.intensity_index(intensity),
+        text=args.text,
+        seed=args.seed,
+        sample=0,
+        confidence=confidence,
+        **({"hold_still": True} if hold else {}),
+    )
     files = {
         "tendons": plotting.tendon_figure(u, out / "tendons.png", title=f"{intent} / {intensity}"),
-        "csv": str(write_atomic(out / "commands.csv",
-                                       export.command_stream_csv(u[0], control_dt=CONTROL_DT, meta=meta))),
-        "json": str(write_atomic(out / "commands.json",
-                                        export.command_stream_json(u[0], control_dt=CONTROL_DT, meta=meta))),
+        "csv": str(
+            write_atomic(out / "commands.csv", export.command_stream_csv(u[0], control_dt=CONTROL_DT, meta=meta))
+        ),
+        "json": str(
+            write_atomic(out / "commands.json", export.command_stream_json(u[0], control_dt=CONTROL_DT, meta=meta))
+        ),
     }
     buf = __import__("io").BytesIO()
     np.save(buf, u)
     files["samples"] = str(write_atomic(out / "samples.npy", buf.getvalue()))
     if not args.no_render and u.shape[-1] != 4:
-        say("render", f"render skipped: the built-in simulator is the 4-tendon trunk, this checkpoint has "
-            f"N_u = {u.shape[-1]} tendons")
+        say(
+            "render",
+            f"render skipped: the built-in simulator is the 4-tendon trunk, this checkpoint has "
+            f"N_u = {u.shape[-1]} tendons",
+        )
     elif not args.no_render:
         from jgrounding.sim import render
 
@@ -209,8 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--intensity needs --intent (or give a text to ground)")
     if args.intent is None:
         if args.text is None or not args.text.strip():
-            parser.error("give a response text to ground, or --intent NAME "
-                         f"(valid intents: {', '.join(INTENTS)})")
+            parser.error(f"give a response text to ground, or --intent NAME (valid intents: {', '.join(INTENTS)})")
         if len(args.text) > MAX_TEXT_CHARS:
             parser.error(f"text is {len(args.text)} characters; at most {MAX_TEXT_CHARS} are accepted")
         try:

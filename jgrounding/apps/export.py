@@ -11,7 +11,6 @@ import csv
 import io
 import json
 import os
-from pathlib import Path
 
 import numpy as np
 
@@ -23,8 +22,10 @@ TENDON_ANGLES_DEG = (0, 90, 180, 270)
 
 
 def _layout() -> dict:
-    return {"channels": [f"tendon_{j}_{a}deg" for j, a in enumerate(TENDON_ANGLES_DEG)],
-            "tendon_layout": "tendon 0 faces the user (+x), 1 robot's left (+y), 2 away (-x), 3 right (-y)"}
+    return {
+        "channels": [f"tendon_{j}_{a}deg" for j, a in enumerate(TENDON_ANGLES_DEG)],
+        "tendon_layout": "tendon 0 faces the user (+x), 1 robot's left (+y), 2 away (-x), 3 right (-y)",
+    }
 
 
 def _header(u: np.ndarray, control_dt: float, meta: dict | None) -> dict:
@@ -36,8 +37,14 @@ def _header(u: np.ndarray, control_dt: float, meta: dict | None) -> dict:
         "control_dt_s": control_dt,
         "control_rate_hz": 1.0 / control_dt,
         "num_steps": int(u.shape[0]),
-        **(_layout() if u.shape[-1] == len(TENDON_ANGLES_DEG) else
-           {"channels": [f"tendon_{j}" for j in range(u.shape[-1])], "tendon_layout": "as in the imported library"}),
+        **(
+            _layout()
+            if u.shape[-1] == len(TENDON_ANGLES_DEG)
+            else {
+                "channels": [f"tendon_{j}" for j in range(u.shape[-1])],
+                "tendon_layout": "as in the imported library",
+            }
+        ),
         **(meta or {}),
     }
 

@@ -40,8 +40,8 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     from jgrounding.apps import plotting
     from jgrounding.generators import sampling
     from jgrounding.io import write_atomic
-    from jgrounding.sim import render
     from jgrounding.semantics import HOLD_STILL, ground
+    from jgrounding.sim import render
 
     out = Path(args.out)
     history: list[tuple[str, str]] = []
@@ -118,8 +118,10 @@ def main(argv=None, stdin=None, stdout=None) -> int:
         buf = __import__("io").BytesIO()
         np.save(buf, np.concatenate(stream))
         write_atomic(out / "stream.npy", buf.getvalue())
-        print(f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=f'{g.intent} / {g.intensity}')}",
-              file=stdout)
+        print(
+            f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=f'{g.intent} / {g.intensity}')}",
+            file=stdout,
+        )
         stdout.flush()
     return 0
 

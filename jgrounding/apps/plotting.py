@@ -24,8 +24,7 @@ def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = Tr
     labels = TENDON_LABELS if samples.shape[-1] == 4 else [f"tendon {j}" for j in range(samples.shape[-1])]
     for k, s in enumerate(samples):
         for j in range(s.shape[-1]):
-            ax.plot(tau, s[:, j], color=colors[j], alpha=alpha, lw=lw,
-                    label=labels[j] if (legend and k == 0) else None)
+            ax.plot(tau, s[:, j], color=colors[j], alpha=alpha, lw=lw, label=labels[j] if (legend and k == 0) else None)
     if reference is not None:
         ref = np.asarray(reference)
         for j in range(ref.shape[-1]):

@@ -38,8 +38,9 @@ def model_of(trained: methods.Trained, guidance: float = 0.0) -> sampling.Model:
     """The public sampler of a trained method (seed 0), as ``jg.sample(checkpoint=...)`` builds it."""
     from jgrounding import semantics
 
-    return sampling.Model(trained, semantics.intent_embeddings(), name=f"{trained.method} (in memory)",
-                          guidance=guidance)
+    return sampling.Model(
+        trained, semantics.intent_embeddings(), name=f"{trained.method} (in memory)", guidance=guidance
+    )
 
 
 def measures(trained: methods.Trained) -> str:
@@ -47,8 +48,17 @@ def measures(trained: methods.Trained) -> str:
     return CORE if methods.spec(trained.method).condition == "raw" else PUBLIC
 
 
-def public_ms(model: sampling.Model, intent, intensity, key, *, sampler: str | None = None, steps: int = 50,
-              num_samples: int = 1, reps: int = 200) -> float:
+def public_ms(
+    model: sampling.Model,
+    intent,
+    intensity,
+    key,
+    *,
+    sampler: str | None = None,
+    steps: int = 50,
+    num_samples: int = 1,
+    reps: int = 200,
+) -> float:
     """Median warm wall time (ms) of ``model.sample(key_i, intent[i % N], intensity[i % N], num_samples)``
     over ``reps`` calls; ``intent``, ``intensity``: index arrays ``(N,)``."""
     n = len(intent)
@@ -57,12 +67,22 @@ def public_ms(model: sampling.Model, intent, intensity, key, *, sampler: str | N
     return _median_ms(lambda k, m, z: model.sample(k, m, z, num_samples, sampler=sampler, steps=steps), calls)
 
 
-def batch_ms(model: sampling.Model, intent, intensity, key, *, num_samples: int = 30, sampler: str | None = None,
-             steps: int = 50, reps: int = 5) -> float:
+def batch_ms(
+    model: sampling.Model,
+    intent,
+    intensity,
+    key,
+    *,
+    num_samples: int = 30,
+    sampler: str | None = None,
+    steps: int = 50,
+    reps: int = 5,
+) -> float:
     """Median warm wall time (ms) of one public call for ``N x num_samples`` trajectories."""
     keys = [(k,) for k in jax.random.split(key, reps)]
-    return _median_ms(lambda k: model.sample(k, list(intent), list(intensity), num_samples, sampler=sampler,
-                                             steps=steps), keys)
+    return _median_ms(
+        lambda k: model.sample(k, list(intent), list(intensity), num_samples, sampler=sampler, steps=steps), keys
+    )
 
 
 def core_fn(trained: methods.Trained, *, sampler: str = "euler", steps: int = 50, guidance: float = 0.0):
@@ -72,28 +92,59 @@ def core_fn(trained: methods.Trained, *, sampler: str = "euler", steps: int = 50
 
     @jax.jit
     def fn(cond, intensity, key):
-        return methods.sample_one(trained.method, trained.graphdef, params, cond, intensity, key, sampler=sampler,
-                                  steps=steps, num_controls=trained.num_controls, num_tendons=trained.num_tendons,
-                                  guidance=guidance)
+        return methods.sample_one(
+            trained.method,
+            trained.graphdef,
+            params,
+            cond,
+            intensity,
+            key,
+            sampler=sampler,
+            steps=steps,
+            num_controls=trained.num_controls,
+            num_tendons=trained.num_tendons,
+            guidance=guidance,
+        )
 
     return fn
 
 
-def core_ms(trained: methods.Trained, cond, intensity, key, *, sampler: str = "euler", steps: int = 50,
-            batch: int = 1, reps: int = 200, guidance: float = 0.0) -> float:
+def core_ms(
+    trained: methods.Trained,
+    cond,
+    intensity,
+    key,
+    *,
+    sampler: str = "euler",
+    steps: int = 50,
+    batch: int = 1,
+    reps: int = 200,
+    guidance: float = 0.0,
+) -> float:
     """Median warm wall time (ms) of the compiled core for ``batch`` trajectories per call, cycling through
     ``cond (N, 384)``, ``intensity (N,)``; inputs and keys on the device before the clock."""
     fn = core_fn(trained, sampler=sampler, steps=steps, guidance=guidance)
     n = len(cond)
     keys = jax.random.split(key, reps)
     rows = [np.arange(i * batch, (i + 1) * batch) % n for i in range(reps)]
-    calls = [(jnp.asarray(cond[r], jnp.float32), jnp.asarray(intensity[r], jnp.int32), keys[i])
-             for i, r in enumerate(rows)]
+    calls = [
+        (jnp.asarray(cond[r], jnp.float32), jnp.asarray(intensity[r], jnp.int32), keys[i]) for i, r in enumerate(rows)
+    ]
     return _median_ms(fn, calls)
 
 
-def latency_ms(trained: methods.Trained, intent, intensity, key, *, cond=None, sampler: str | None = None,
-               steps: int = 50, reps: int = 200, guidance: float = 0.0) -> float:
+def latency_ms(
+    trained: methods.Trained,
+    intent,
+    intensity,
+    key,
+    *,
+    cond=None,
+    sampler: str | None = None,
+    steps: int = 50,
+    reps: int = 200,
+    guidance: float = 0.0,
+) -> float:
     """Table II's Time: median warm single-trajectory grounding (tuple -> u, spline reconstruction and
     safety gate included), cycling through the tuples ``intent``, ``intensity`` ``(N,)``.
 
@@ -103,6 +154,7 @@ def latency_ms(trained: methods.Trained, intent, intensity, key, *, cond=None, s
     if methods.spec(trained.method).condition == "raw":
         if cond is None:
             raise ValueError(f"{trained.method} is conditioned on text: pass its embeddings as cond (N, 384)")
-        return core_ms(trained, cond, intensity, key, sampler=sampler or "euler", steps=steps, reps=reps,
-                       guidance=guidance)
+        return core_ms(
+            trained, cond, intensity, key, sampler=sampler or "euler", steps=steps, reps=reps, guidance=guidance
+        )
     return public_ms(model_of(trained, guidance), intent, intensity, key, sampler=sampler, steps=steps, reps=reps)

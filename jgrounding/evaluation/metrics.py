@@ -48,8 +48,9 @@ def coverage(samples, realizations) -> jax.Array:
 def tuple_realizations(library) -> np.ndarray:
     """``(64, R, T, N_u)``: every library realization (train and held-out) of each held-out record's tuple."""
     u = np.concatenate([library.train.u, library.heldout.u])
-    key = np.concatenate([library.train.intent * 4 + library.train.intensity,
-                          library.heldout.intent * 4 + library.heldout.intensity])
+    key = np.concatenate(
+        [library.train.intent * 4 + library.train.intensity, library.heldout.intent * 4 + library.heldout.intensity]
+    )
     ho = library.heldout.intent * 4 + library.heldout.intensity
     return np.stack([u[key == k] for k in ho])
 
@@ -69,11 +70,13 @@ def _pools(library) -> dict:
     tr, ho = library.train, library.heldout
     return {
         "oracle": lambda j: np.flatnonzero((tr.intent == ho.intent[j]) & (tr.intensity == ho.intensity[j])),
-        "wrong_intent_same_intensity": lambda j: np.flatnonzero((tr.intent != ho.intent[j])
-                                                                & (tr.intensity == ho.intensity[j])),
+        "wrong_intent_same_intensity": lambda j: np.flatnonzero(
+            (tr.intent != ho.intent[j]) & (tr.intensity == ho.intensity[j])
+        ),
         "wrong_intent_any_intensity": lambda j: np.flatnonzero(tr.intent != ho.intent[j]),
-        "adjacent_intensity": lambda j: np.flatnonzero((tr.intent == ho.intent[j])
-                                                       & (np.abs(tr.intensity - ho.intensity[j]) == 1)),
+        "adjacent_intensity": lambda j: np.flatnonzero(
+            (tr.intent == ho.intent[j]) & (np.abs(tr.intensity - ho.intensity[j]) == 1)
+        ),
     }
 
 

@@ -65,8 +65,9 @@ class ShapeTolerance:
     wrong_intent_success: float  # different-intent pairs inside tau_m
 
 
-def calibrate(u: np.ndarray, backbone: np.ndarray, intent: np.ndarray, intensity: np.ndarray,
-              tau_rms: float) -> ShapeTolerance:
+def calibrate(
+    u: np.ndarray, backbone: np.ndarray, intent: np.ndarray, intensity: np.ndarray, tau_rms: float
+) -> ShapeTolerance:
     """Shape tolerance from the library's own spread (quantile matching of the two distances).
 
     Args:
@@ -89,19 +90,24 @@ def calibrate(u: np.ndarray, backbone: np.ndarray, intent: np.ndarray, intensity
     tau_m = float(np.quantile(shape, q, method="inverted_cdf"))  # the smallest distance with a share q within
     same = (intent[iu[0]] == intent[iu[1]]) & (intensity[iu[0]] == intensity[iu[1]])
     wrong = intent[iu[0]] != intent[iu[1]]
-    return ShapeTolerance(tau_m=tau_m, tau_rms=float(tau_rms), percentile=100 * q,
-                          within_tuple_median_m=float(np.median(shape[same])),
-                          wrong_intent_median_m=float(np.median(shape[wrong])),
-                          oracle_success=float(np.mean(shape[same] <= tau_m)),
-                          wrong_intent_success=float(np.mean(shape[wrong] <= tau_m)))
+    return ShapeTolerance(
+        tau_m=tau_m,
+        tau_rms=float(tau_rms),
+        percentile=100 * q,
+        within_tuple_median_m=float(np.median(shape[same])),
+        wrong_intent_median_m=float(np.median(shape[wrong])),
+        oracle_success=float(np.mean(shape[same] <= tau_m)),
+        wrong_intent_success=float(np.mean(shape[wrong] <= tau_m)),
+    )
 
 
 def margins(u: np.ndarray, *, engine: str = "auto") -> np.ndarray:
     """Feasibility margin (:func:`jgrounding.sim.feasibility_margin`) of every trajectory ``u (B, T, 4)``,
     rolled out in chunks of :data:`CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible."""
     engine = sim.resolve_engine(engine)
-    return np.concatenate([sim.feasibility_margin(sim.rollout(u[i:i + CHUNK], engine=engine))
-                           for i in range(0, len(u), CHUNK)])
+    return np.concatenate(
+        [sim.feasibility_margin(sim.rollout(u[i : i + CHUNK], engine=engine)) for i in range(0, len(u), CHUNK)]
+    )
 
 
 def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engine: str = "auto") -> dict:
@@ -123,14 +129,21 @@ def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engi
     feasible = np.empty(len(uniq), bool)
     t0 = time.perf_counter()
     for i in range(0, len(uniq), CHUNK):
-        r = sim.rollout(uniq[i:i + CHUNK], engine=engine)
-        backbone[i:i + CHUNK] = r.backbone
-        margin[i:i + CHUNK] = sim.feasibility_margin(r)
-        feasible[i:i + CHUNK] = sim.feasible(r)
+        r = sim.rollout(uniq[i : i + CHUNK], engine=engine)
+        backbone[i : i + CHUNK] = r.backbone
+        margin[i : i + CHUNK] = sim.feasibility_margin(r)
+        feasible[i : i + CHUNK] = sim.feasible(r)
     seconds = time.perf_counter() - t0
     inverse = inverse.reshape(-1)
     bb = backbone[inverse].reshape(n, k, *reference.shape[1:])
     dist = shape_rms(bb, reference[:, None].astype(np.float32))
-    return {"shape_rms": dist, "shape_success": dist <= tau_m, "feasible": feasible[inverse].reshape(n, k),
-            "margin": margin[inverse].reshape(n, k), "diversity": shape_diversity(bb),
-            "simulated": int(len(uniq)), "seconds": seconds, "engine": engine}
+    return {
+        "shape_rms": dist,
+        "shape_success": dist <= tau_m,
+        "feasible": feasible[inverse].reshape(n, k),
+        "margin": margin[inverse].reshape(n, k),
+        "diversity": shape_diversity(bb),
+        "simulated": int(len(uniq)),
+        "seconds": seconds,
+        "engine": engine,
+    }

@@ -36,15 +36,23 @@ class Generator(Protocol):
     iterative: bool
     samplers: tuple[str, ...]
 
-    def init(self, key: jax.Array, representation: Representation, num_controls: int, num_tendons: int,
-             use_intensity: bool, config: ModelConfig) -> nnx.Module:
+    def init(
+        self,
+        key: jax.Array,
+        representation: Representation,
+        num_controls: int,
+        num_tendons: int,
+        use_intensity: bool,
+        config: ModelConfig,
+    ) -> nnx.Module:
         """The network, its parameters drawn from ``key``."""
 
     def loss(self, model: nnx.Module, batch: dict, key: jax.Array, config: TrainConfig) -> jax.Array:
         """Scalar training loss of a batch ``{"cond" (B, E), "intensity" (B,), "target" (B, ...)}`` (and
         ``"noise"`` (B, D) for coupled reflow pairs)."""
 
-    def sample(self, model: nnx.Module, cond: jax.Array, intensity: jax.Array, key: jax.Array, dim: int,
-               config: SampleConfig) -> jax.Array:
+    def sample(
+        self, model: nnx.Module, cond: jax.Array, intensity: jax.Array, key: jax.Array, dim: int, config: SampleConfig
+    ) -> jax.Array:
         """Normalized targets ``(B, D)`` or ``(B, L, N_u)`` for conditions ``cond (B, E)``, ``intensity (B,)``;
         ``dim`` D = N_u * L is the flat target size."""

@@ -125,8 +125,9 @@ def ddpm_loss(noise_pred, c, key, steps: int = DDPM_STEPS):
     return jnp.mean((noise_pred(x_t, i / steps) - eps) ** 2)
 
 
-def ddpm_sample(noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "ancestral", sample_steps=None,
-                embed_time=None):
+def ddpm_sample(
+    noise_pred, x_T, key, steps: int = DDPM_STEPS, sampler: str = "ancestral", sample_steps=None, embed_time=None
+):
     """Reverse diffusion from ``x_T``: ``ancestral`` (all ``steps``) or ``ddim`` (``sample_steps``, eta 0).
 
     ``noise_pred(x, t)`` with ``t = step / steps`` of shape ``(B,)``, or ``noise_pred(x, embed_time(t))``.
@@ -173,8 +174,9 @@ class _Flow:
     sequence = False
     iterative = True  # sampling steps S apply
 
-    def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool,
-             config: ModelConfig) -> nnx.Module:
+    def init(
+        self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig
+    ) -> nnx.Module:
         dim = num_tendons * representation.length(num_controls)
         return VelocityMLP(dim, use_intensity, config, rngs=nnx.Rngs(key))
 
@@ -235,5 +237,6 @@ class DDPM(_Flow):
     @staticmethod
     def _integrate(net, eps, key, config: SampleConfig, embed_time):
         sampler = "ancestral" if config.sampler == "euler" else config.sampler  # the default of each generator
-        return ddpm_sample(net, eps, jax.random.fold_in(key, 1), sampler=sampler, sample_steps=config.steps,
-                           embed_time=embed_time)
+        return ddpm_sample(
+            net, eps, jax.random.fold_in(key, 1), sampler=sampler, sample_steps=config.steps, embed_time=embed_time
+        )

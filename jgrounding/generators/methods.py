@@ -37,10 +37,15 @@ class Regressor:
     iterative = False
     samplers = ("none",)  # one deterministic forward pass
 
-    def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool,
-             config: ModelConfig):
-        return CNNRegressor(representation.length(num_controls), use_intensity, representation.cnn_channels(config),
-                            num_tendons, config, rngs=nnx.Rngs(key))
+    def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig):
+        return CNNRegressor(
+            representation.length(num_controls),
+            use_intensity,
+            representation.cnn_channels(config),
+            num_tendons,
+            config,
+            rngs=nnx.Rngs(key),
+        )
 
     def loss(self, model, batch, key, config: TrainConfig):
         del key, config  # deterministic
@@ -64,8 +69,11 @@ class Spline:
         return config.cnn_channels
 
     def target(self, split, num_controls: int, sequence: bool) -> np.ndarray:
-        c = split.controls if num_controls == split.controls.shape[-1] else \
-            np.asarray(splines.fit(split.u, num_controls=num_controls))  # (N, N_u, P)
+        c = (
+            split.controls
+            if num_controls == split.controls.shape[-1]
+            else np.asarray(splines.fit(split.u, num_controls=num_controls))
+        )  # (N, N_u, P)
         return np.swapaxes(c, -1, -2) if sequence else c.reshape(len(split), -1)
 
     def actuation(self, y, sequence: bool, num_tendons: int, num_controls: int):
@@ -110,13 +118,16 @@ class MethodSpec:
         return self.condition == "tuple"
 
 
-REGISTRY = {s.name: s for s in (
-    MethodSpec("raw_dense_cnn", "Raw + Dense + CNN", "raw", Dense(), Regressor()),
-    MethodSpec("tuple_dense_cnn", "Tuple + Dense + CNN", "tuple", Dense(), Regressor()),
-    MethodSpec("tuple_spline_cnn", "Tuple + Spline + CNN", "tuple", Spline(), Regressor()),
-    MethodSpec("tuple_spline_ddpm", "Tuple + Spline + DDPM", "tuple", Spline(), DDPM()),
-    MethodSpec("tuple_spline_rf", "Tuple + Spline + RF", "tuple", Spline(), RectifiedFlow()),
-)}
+REGISTRY = {
+    s.name: s
+    for s in (
+        MethodSpec("raw_dense_cnn", "Raw + Dense + CNN", "raw", Dense(), Regressor()),
+        MethodSpec("tuple_dense_cnn", "Tuple + Dense + CNN", "tuple", Dense(), Regressor()),
+        MethodSpec("tuple_spline_cnn", "Tuple + Spline + CNN", "tuple", Spline(), Regressor()),
+        MethodSpec("tuple_spline_ddpm", "Tuple + Spline + DDPM", "tuple", Spline(), DDPM()),
+        MethodSpec("tuple_spline_rf", "Tuple + Spline + RF", "tuple", Spline(), RectifiedFlow()),
+    )
+}
 METHODS = tuple(REGISTRY)
 DISPLAY = {name: s.display for name, s in REGISTRY.items()}
 
@@ -128,8 +139,9 @@ def spec(method: str) -> MethodSpec:
     return REGISTRY[method]
 
 
-def build_model(method: str, num_controls: int, key, num_tendons: int = 4,
-                model: ModelConfig = ModelConfig()) -> nnx.Module:
+def build_model(
+    method: str, num_controls: int, key, num_tendons: int = 4, model: ModelConfig = ModelConfig()
+) -> nnx.Module:
     """The network of ``method`` for ``num_tendons`` (N_u, from the library) and P = ``num_controls``."""
     s = spec(method)
     return s.generator.init(key, s.representation, num_controls, num_tendons, s.use_intensity, model)
@@ -171,8 +183,11 @@ def training_data(method: str, split, intent_emb: np.ndarray, text_emb: np.ndarr
     else:
         cond = intent_emb[split.intent]
         intensity = split.intensity
-    return {"cond": jnp.asarray(cond, jnp.float32), "intensity": jnp.asarray(intensity, jnp.int32),
-            "target": _encode(jnp.asarray(target, jnp.float32))}
+    return {
+        "cond": jnp.asarray(cond, jnp.float32),
+        "intensity": jnp.asarray(intensity, jnp.int32),
+        "target": _encode(jnp.asarray(target, jnp.float32)),
+    }
 
 
 def loss_fn(method: str, graphdef, data, config: TrainConfig = TrainConfig()):
@@ -202,9 +217,21 @@ def abstract(method: str, seeds, num_controls: int = 4, num_tendons: int = 4, mo
     return graphdef, jax.tree.map(lambda x: jax.ShapeDtypeStruct((len(seeds), *x.shape), x.dtype), state)
 
 
-def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: TrainConfig = TrainConfig(),
-          *, intent_emb=None, text_emb=None, num_controls: int = 4, progress: bool = True,
-          initial_states=None, on_chunk=None, mesh=None, model: ModelConfig = ModelConfig()) -> Trained:
+def train(
+    method: str,
+    library,
+    seeds=(0, 1, 2, 3, 4),
+    config: TrainConfig = TrainConfig(),
+    *,
+    intent_emb=None,
+    text_emb=None,
+    num_controls: int = 4,
+    progress: bool = True,
+    initial_states=None,
+    on_chunk=None,
+    mesh=None,
+    model: ModelConfig = ModelConfig(),
+) -> Trained:
     """Train ``method`` on ``library.train`` for every seed at once (vmap); returns :class:`Trained`.
 
     ``mesh``: split the seeds over the devices of a :func:`jgrounding.training.distributed.make_mesh` mesh.
@@ -220,25 +247,44 @@ def train(method: str, library, seeds=(0, 1, 2, 3, 4), config: TrainConfig = Tra
     if initial_states is None:
         keys = jnp.stack([jax.random.fold_in(jax.random.key(int(s)), 1) for s in seeds])
         initial_states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
-    states, losses = training.train(initial_states, step, config, desc=DISPLAY[method], progress=progress,
-                                    on_chunk=on_chunk, mesh=mesh)
-    return Trained(method, graphdef, training.eval_params(states), tuple(int(s) for s in seeds), num_controls,
-                   losses, num_tendons, model)
+    states, losses = training.train(
+        initial_states, step, config, desc=DISPLAY[method], progress=progress, on_chunk=on_chunk, mesh=mesh
+    )
+    return Trained(
+        method,
+        graphdef,
+        training.eval_params(states),
+        tuple(int(s) for s in seeds),
+        num_controls,
+        losses,
+        num_tendons,
+        model,
+    )
 
 
 def check_options(method: str, config: TrainConfig) -> None:
     """``ValueError`` for a generator option that does not apply to ``method``'s generator."""
     generator = spec(method).generator
     if config.condition_dropout and not isinstance(generator, (RectifiedFlow, DDPM)):
-        raise ValueError(f"condition_dropout (classifier-free guidance) needs a flow or diffusion generator; "
-                         f"{method} is a deterministic regressor")
+        raise ValueError(
+            f"condition_dropout (classifier-free guidance) needs a flow or diffusion generator; "
+            f"{method} is a deterministic regressor"
+        )
     if config.time_sampler != "uniform" and not isinstance(generator, RectifiedFlow):
         raise ValueError(f"time_sampler {config.time_sampler!r} applies to rectified flow; {method} is not RF")
 
 
-def reflow(teacher: Trained, library, config: TrainConfig = TrainConfig(), *, intent_emb=None,
-           pairs_per_example: int = 64, teacher_steps: int = 50, teacher_guidance: float = 0.0,
-           progress: bool = True) -> Trained:
+def reflow(
+    teacher: Trained,
+    library,
+    config: TrainConfig = TrainConfig(),
+    *,
+    intent_emb=None,
+    pairs_per_example: int = 64,
+    teacher_steps: int = 50,
+    teacher_guidance: float = 0.0,
+    progress: bool = True,
+) -> Trained:
     """2-rectified flow (Liu et al., "Flow straight and fast"): retrain each seed of an RF ``teacher`` on
     coupled pairs (eps, x1 = ODE_teacher(eps | condition)) so that its paths straighten and few Euler
     steps reach what many did.
@@ -288,8 +334,13 @@ def reflow(teacher: Trained, library, config: TrainConfig = TrainConfig(), *, in
 
 def checkpoint_meta(trained: Trained) -> dict:
     """What every checkpoint of a :class:`Trained` records so that :func:`restore` rebuilds its network."""
-    return {"method": trained.method, "seeds": list(trained.seeds), "num_controls": trained.num_controls,
-            "num_tendons": trained.num_tendons, "model": dataclasses.asdict(trained.model)}
+    return {
+        "method": trained.method,
+        "seeds": list(trained.seeds),
+        "num_controls": trained.num_controls,
+        "num_tendons": trained.num_tendons,
+        "model": dataclasses.asdict(trained.model),
+    }
 
 
 # = jgrounding.library.DEFAULT_PATH, named here so that loading a checkpoint does not import the library
@@ -310,10 +361,12 @@ def library_mismatch(path, meta: dict) -> str | None:
         current = json.loads(lib_path.with_suffix(".json").read_text()).get("library_version", "1 (unversioned)")
     except (OSError, ValueError):
         current = "unknown"
-    return (f"checkpoint {path} was trained on library version {meta.get('library_version', '1 (unversioned)')} "
-            f"(sha256 {digest[:12]}...), but {lib_path} is library version {current} (sha256 "
-            f"{io.sha256_file(lib_path)[:12]}...); retrain it (python -m experiments.train --out {path}) or pass "
-            "allow_library_mismatch=True (--allow-library-mismatch) to use it anyway")
+    return (
+        f"checkpoint {path} was trained on library version {meta.get('library_version', '1 (unversioned)')} "
+        f"(sha256 {digest[:12]}...), but {lib_path} is library version {current} (sha256 "
+        f"{io.sha256_file(lib_path)[:12]}...); retrain it (python -m experiments.train --out {path}) or pass "
+        "allow_library_mismatch=True (--allow-library-mismatch) to use it anyway"
+    )
 
 
 def restore(path, method: str | None = None, *, allow_library_mismatch: bool = False) -> Trained:
@@ -346,12 +399,25 @@ def restore(path, method: str | None = None, *, allow_library_mismatch: bool = F
         raise ValueError(f"checkpoint {path}: {e}") from None
     graphdef, params = abstract(name, tuple(seeds), num_controls, num_tendons, model)
     params, _ = checkpoints.restore(path, params)
-    return Trained(name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons,
-                   model=model)
+    return Trained(
+        name, graphdef, params, tuple(int(x) for x in seeds), num_controls, num_tendons=num_tendons, model=model
+    )
 
 
-def actuation(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
-              steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
+def actuation(
+    method: str,
+    graphdef,
+    params,
+    cond,
+    intensity,
+    key,
+    *,
+    sampler: str = "euler",
+    steps: int = 50,
+    num_controls: int = 4,
+    num_tendons: int = 4,
+    guidance: float = 0.0,
+):
     """Ungated actuation for a batch of conditions: the generator's sample (normalized controls or
     trajectory), decoded to [0, 1], and the spline reconstruction u = R(c) for spline methods.
 
@@ -367,16 +433,51 @@ def actuation(method: str, graphdef, params, cond, intensity, key, *, sampler: s
     return s.representation.actuation(y, s.generator.sequence, num_tendons, num_controls)
 
 
-def sample_one(method: str, graphdef, params, cond, intensity, key, *, sampler: str = "euler",
-               steps: int = 50, num_controls: int = 4, num_tendons: int = 4, guidance: float = 0.0):
+def sample_one(
+    method: str,
+    graphdef,
+    params,
+    cond,
+    intensity,
+    key,
+    *,
+    sampler: str = "euler",
+    steps: int = 50,
+    num_controls: int = 4,
+    num_tendons: int = 4,
+    guidance: float = 0.0,
+):
     """Samples for a batch of conditions ``cond (B, 384)``, ``intensity (B,)`` -> gated u ``(B, 150, N_u)``."""
-    return safety.make_safe(actuation(method, graphdef, params, cond, intensity, key, sampler=sampler, steps=steps,
-                                      num_controls=num_controls, num_tendons=num_tendons, guidance=guidance))
+    return safety.make_safe(
+        actuation(
+            method,
+            graphdef,
+            params,
+            cond,
+            intensity,
+            key,
+            sampler=sampler,
+            steps=steps,
+            num_controls=num_controls,
+            num_tendons=num_tendons,
+            guidance=guidance,
+        )
+    )
 
 
-def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num_samples: int = 30, *,
-             sampler: str = "euler", steps: int = 50, batch: int = 640, mesh=None,
-             guidance: float = 0.0) -> np.ndarray:
+def generate(
+    trained: Trained,
+    cond: np.ndarray,
+    intensity: np.ndarray,
+    key,
+    num_samples: int = 30,
+    *,
+    sampler: str = "euler",
+    steps: int = 50,
+    batch: int = 640,
+    mesh=None,
+    guidance: float = 0.0,
+) -> np.ndarray:
     """u ``(num_seeds, N, K, 150, 4)`` for conditions ``cond (N, 384)``, ``intensity (N,)``.
 
     ``mesh``: a :func:`jgrounding.training.distributed.make_mesh` mesh; the flattened (condition x sample)
@@ -386,8 +487,9 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
     n = cond.shape[0]
     cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), num_samples, axis=0)
     inten_k = jnp.repeat(jnp.asarray(intensity, jnp.int32), num_samples, axis=0)
-    fn = generate_fn(trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh,
-                      trained.num_tendons, guidance)
+    fn = generate_fn(
+        trained.method, trained.graphdef, sampler, steps, trained.num_controls, mesh, trained.num_tendons, guidance
+    )
     keys = jax.random.split(key, len(trained.seeds))
     params = trained.params
     if mesh is not None:
@@ -396,7 +498,7 @@ def generate(trained: Trained, cond: np.ndarray, intensity: np.ndarray, key, num
     outs = []
     for i in range(0, n * num_samples, batch):
         sub = jax.vmap(lambda k: jax.random.fold_in(k, i))(keys)
-        c, z = cond_k[i:i + batch], inten_k[i:i + batch]
+        c, z = cond_k[i : i + batch], inten_k[i : i + batch]
         pad = batch - c.shape[0]
         c, z = jnp.pad(c, ((0, pad), (0, 0))), jnp.pad(z, (0, pad))
         if mesh is not None:
@@ -413,15 +515,30 @@ def generate_fn(method, graphdef, sampler, steps, num_controls, mesh=None, num_t
     """``jit(vmap over seeds(sample_one))``; with a mesh the batch axis is split over its devices."""
     key = (method, id(graphdef), sampler, steps, num_controls, mesh, num_tendons, float(guidance))
     if key not in _GEN_CACHE:
+
         def one(params, cond, inten, k):
-            return sample_one(method, graphdef, params, cond, inten, k, sampler=sampler, steps=steps,
-                              num_controls=num_controls, num_tendons=num_tendons, guidance=guidance)
+            return sample_one(
+                method,
+                graphdef,
+                params,
+                cond,
+                inten,
+                k,
+                sampler=sampler,
+                steps=steps,
+                num_controls=num_controls,
+                num_tendons=num_tendons,
+                guidance=guidance,
+            )
 
         fn = jax.vmap(one, in_axes=(0, None, None, 0))
         if mesh is None:
             _GEN_CACHE[key] = jax.jit(fn)
         else:
             rep, split = distributed.sharding(mesh), distributed.sharding(mesh, distributed.AXIS)
-            _GEN_CACHE[key] = jax.jit(fn, in_shardings=(rep, split, split, rep),
-                                      out_shardings=distributed.sharding(mesh, None, distributed.AXIS))
+            _GEN_CACHE[key] = jax.jit(
+                fn,
+                in_shardings=(rep, split, split, rep),
+                out_shardings=distributed.sharding(mesh, None, distributed.AXIS),
+            )
     return _GEN_CACHE[key]

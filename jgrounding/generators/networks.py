@@ -47,8 +47,7 @@ class VelocityMLP(nnx.Module):
     Layers are ``l1 .. l<depth>``: the first takes [x, time embedding, condition]; the last is linear.
     """
 
-    def __init__(self, dim: int, use_intensity: bool = True, config: ModelConfig = ModelConfig(), *,
-                 rngs: nnx.Rngs):
+    def __init__(self, dim: int, use_intensity: bool = True, config: ModelConfig = ModelConfig(), *, rngs: nnx.Rngs):
         self.dim, self.time_dim, self.depth = dim, config.time_dim, config.depth
         self.cond = Condition(use_intensity, config, rngs=rngs)
         sizes = [dim + config.time_dim + self.cond.dim] + [config.width] * (config.depth - 1) + [dim]
@@ -64,7 +63,7 @@ class VelocityMLP(nnx.Module):
 
     def context(self, text_emb, intensity):
         """The condition's share of the first layer: constant across flow steps, so computed once."""
-        w = self.l1.kernel.value[self.dim + self.time_dim:]
+        w = self.l1.kernel.value[self.dim + self.time_dim :]
         return self.cond(text_emb, intensity) @ w + self.l1.bias.value
 
     def null_context(self, batch: int):
@@ -75,11 +74,11 @@ class VelocityMLP(nnx.Module):
     def time_context(self, t):
         """The flow time's share of the first layer ``(n,) -> (n, width)``: a sampler computes it for all
         its steps at once, before its loop (the schedule is fixed)."""
-        return sinusoidal(t, self.time_dim) @ self.l1.kernel.value[self.dim:self.dim + self.time_dim]
+        return sinusoidal(t, self.time_dim) @ self.l1.kernel.value[self.dim : self.dim + self.time_dim]
 
     def velocity(self, x, time_context, context):
         """One network evaluation from precomputed :meth:`time_context` and :meth:`context` rows."""
-        return self._head(x @ self.l1.kernel.value[:self.dim] + time_context + context)
+        return self._head(x @ self.l1.kernel.value[: self.dim] + time_context + context)
 
     def __call__(self, x, t, text_emb, intensity, keep=None):
         """``keep (B,)`` in {0, 1}: 0 replaces the condition by the null condition (condition dropout)."""
@@ -107,15 +106,23 @@ class Conv1D(nnx.Module):
         pad = [(0, 0)] * (x.ndim - 2) + [(half, self.kernel - 1 - half), (0, 0)]
         xp = jnp.pad(x, pad)
         length = x.shape[-2]
-        windows = jnp.stack([xp[..., i:i + length, :] for i in range(self.kernel)], axis=-2)  # (..., L, k, C)
+        windows = jnp.stack([xp[..., i : i + length, :] for i in range(self.kernel)], axis=-2)  # (..., L, k, C)
         return jnp.einsum("...lkc,kco->...lo", windows, self.w.value) + self.b.value
 
 
 class CNNRegressor(nnx.Module):
     """Deterministic 1-D CNN: condition -> (length, N_u) trajectory (dense, T=150) or controls (P)."""
 
-    def __init__(self, length: int, use_intensity: bool = True, channels: int = 64, num_tendons: int = 4,
-                 config: ModelConfig = ModelConfig(), *, rngs: nnx.Rngs):
+    def __init__(
+        self,
+        length: int,
+        use_intensity: bool = True,
+        channels: int = 64,
+        num_tendons: int = 4,
+        config: ModelConfig = ModelConfig(),
+        *,
+        rngs: nnx.Rngs,
+    ):
         self.length = length
         self.base = max(length // 4, 1) if length > 16 else length
         self.cond = Condition(use_intensity, config, rngs=rngs)

@@ -26,8 +26,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from jgrounding import safety
-
-
 from jgrounding.generators import methods
 from jgrounding.training import checkpoints
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
@@ -50,11 +48,11 @@ class Model:
     (sampler, steps, batch bucket).
     """
 
-    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None,
-                 guidance: float = 0.0):
+    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None, guidance: float = 0.0):
         if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
-            trained = dataclasses.replace(trained, params=jax.tree.map(lambda x: x[:1], trained.params),
-                                          seeds=trained.seeds[:1])
+            trained = dataclasses.replace(
+                trained, params=jax.tree.map(lambda x: x[:1], trained.params), seeds=trained.seeds[:1]
+            )
         self.trained = trained
         self.covered = None if covered is None else frozenset(covered)  # tuples of an imported library
         self.intent_emb = np.asarray(intent_emb, np.float32)
@@ -78,9 +76,19 @@ class Model:
             tr, params, emb = self.trained, self._params, self._emb
 
             def row(intent, intensity, key):  # one trajectory; params and embeddings are constants
-                return methods.actuation(tr.method, tr.graphdef, params, emb[intent][None], intensity[None], key,
-                                         sampler=sampler, steps=steps, num_controls=tr.num_controls,
-                                         num_tendons=tr.num_tendons, guidance=self.guidance)[0]
+                return methods.actuation(
+                    tr.method,
+                    tr.graphdef,
+                    params,
+                    emb[intent][None],
+                    intensity[None],
+                    key,
+                    sampler=sampler,
+                    steps=steps,
+                    num_controls=tr.num_controls,
+                    num_tendons=tr.num_tendons,
+                    guidance=self.guidance,
+                )[0]
 
             def run(intent, intensity, first, key):
                 TRACES[(self.name, *cache_key)] += 1  # Python side effect: counts traces, not calls
@@ -98,8 +106,11 @@ class Model:
         return ((self._rest if not start.any() else jax.device_put(start)),), True
 
     def _check(self, num_samples, sampler, steps) -> tuple[str, int]:
-        if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
-                or not 1 <= num_samples <= MAX_SAMPLES:
+        if (
+            isinstance(num_samples, bool)
+            or not isinstance(num_samples, (int, np.integer))
+            or not 1 <= num_samples <= MAX_SAMPLES
+        ):
             raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
         valid = self.generator.samplers  # the first is the generator's default
         sampler = valid[0] if sampler is None else sampler
@@ -109,8 +120,17 @@ class Model:
             raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
         return sampler, int(steps) if self.generator.iterative else 1
 
-    def sample(self, key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None,
-               steps: int = 50, current=safety.REST) -> np.ndarray:
+    def sample(
+        self,
+        key,
+        intent,
+        intensity,
+        num_samples: int = 1,
+        *,
+        sampler: str | None = None,
+        steps: int = 50,
+        current=safety.REST,
+    ) -> np.ndarray:
         """:func:`sample` for this model (same arguments, shapes and errors)."""
         sampler, steps = self._check(num_samples, sampler, steps)
         key = as_key(key)
@@ -124,8 +144,9 @@ class Model:
                     self._check_covered([m], [z])
                     args = self._single[(m, z)] = jax.device_put((np.array([m], np.int32), np.array([z], np.int32)))
                 return self.program(sampler, steps, 1, continuity)(*prefix, *args, self._zero, key)[0]
-            return self._run(key, np.array([m], np.int32), np.array([z], np.int32), num_samples, sampler, steps,
-                             prefix, continuity)[0]
+            return self._run(
+                key, np.array([m], np.int32), np.array([z], np.int32), num_samples, sampler, steps, prefix, continuity
+            )[0]
         m, z = _indices(ms, zs, intent, intensity)
         return self._run(key, m, z, num_samples, sampler, steps, prefix, continuity)
 
@@ -135,15 +156,19 @@ class Model:
         for m, z in zip(ms, zs):
             if (int(m), int(z)) not in self.covered:
                 names = ", ".join(f"{INTENTS[a]}/{INTENSITIES[b]}" for a, b in sorted(self.covered))
-                raise ValueError(f"checkpoint {self.name} was trained on a library without ({INTENTS[m]}, "
-                                 f"{INTENSITIES[z]}); its tuples: {names}")
+                raise ValueError(
+                    f"checkpoint {self.name} was trained on a library without ({INTENTS[m]}, "
+                    f"{INTENSITIES[z]}); its tuples: {names}"
+                )
 
     def _run(self, key, m, z, k, sampler, steps, prefix=(), continuity=False) -> np.ndarray:
         """``(N, K, 150, N_u)`` for index arrays ``m, z (N,)``, in chunks of at most the largest bucket."""
         self._check_covered(m, z)
         total = len(m) * k
         if total > MAX_TRAJECTORIES:
-            raise ValueError(f"{len(m)} tuples x {k} samples = {total} trajectories; at most {MAX_TRAJECTORIES} per call")
+            raise ValueError(
+                f"{len(m)} tuples x {k} samples = {total} trajectories; at most {MAX_TRAJECTORIES} per call"
+            )
         rows_m, rows_z = np.repeat(m, k), np.repeat(z, k)
         n_u = self.trained.num_tendons
         out = np.empty((total, methods.T, n_u), np.float32)
@@ -152,9 +177,10 @@ class Model:
             n = min(chunk, total - start)
             bucket = next(b for b in BUCKETS if b >= n)
             pad = bucket - n
-            cm, cz = np.pad(rows_m[start:start + n], (0, pad)), np.pad(rows_z[start:start + n], (0, pad))
-            out[start:start + n] = self.program(sampler, steps, bucket, continuity)(*prefix, cm, cz, np.int32(start),
-                                                                                    key)[:n]
+            cm, cz = np.pad(rows_m[start : start + n], (0, pad)), np.pad(rows_z[start : start + n], (0, pad))
+            out[start : start + n] = self.program(sampler, steps, bucket, continuity)(
+                *prefix, cm, cz, np.int32(start), key
+            )[:n]
         return out.reshape(len(m), k, methods.T, n_u)
 
 
@@ -189,8 +215,10 @@ def _indices(ms: list | None, zs: list | None, intent, intensity) -> tuple[np.nd
         raise ValueError(f"intents and intensities must have the same length, got {len(ms)} and {len(zs)}")
     n = len(ms) if ms is not None else len(zs)
     if n == 0:
-        raise ValueError(f"intents and intensities must name at least one tuple, got empty sequences; "
-                         f"valid intents: {', '.join(INTENTS)}; valid intensities: {', '.join(INTENSITIES)}")
+        raise ValueError(
+            f"intents and intensities must name at least one tuple, got empty sequences; "
+            f"valid intents: {', '.join(INTENTS)}; valid intensities: {', '.join(INTENSITIES)}"
+        )
     m = np.array([_intent(v) for v in ms] if ms is not None else [_intent(intent)] * n, np.int32)
     z = np.array([_intensity(v) for v in zs] if zs is not None else [_intensity(intensity)] * n, np.int32)
     return m, z
@@ -208,9 +236,11 @@ def check_library(path: Path) -> None:
     from jgrounding import io
 
     if io.sha256_file(lib_path) != digest:
-        raise ValueError(f"checkpoint {path} was trained on library {lib_path} with sha256 {digest[:12]}..., but that "
-                         f"file now has sha256 {io.sha256_file(lib_path)[:12]}...; retrain on the current library "
-                         "(python -m experiments.train --library ...) or restore the library it was trained on")
+        raise ValueError(
+            f"checkpoint {path} was trained on library {lib_path} with sha256 {digest[:12]}..., but that "
+            f"file now has sha256 {io.sha256_file(lib_path)[:12]}...; retrain on the current library "
+            "(python -m experiments.train --library ...) or restore the library it was trained on"
+        )
 
 
 def trained_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
@@ -263,8 +293,10 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
         u = err
     if not isinstance(u, np.ndarray) or u.shape != (methods.T, trained.num_tendons):
         bad = f"shape {u.shape}" if isinstance(u, np.ndarray) else f"non-finite values ({u})"
-        raise ValueError(f"checkpoint {path} failed its load self-test: a sample of "
-                         f"({INTENTS[m]}, {INTENSITIES[z]}) has {bad}; refusing to use it")
+        raise ValueError(
+            f"checkpoint {path} failed its load self-test: a sample of "
+            f"({INTENTS[m]}, {INTENSITIES[z]}) has {bad}; refusing to use it"
+        )
     return loaded
 
 
@@ -290,9 +322,19 @@ def load(checkpoint: str | Path | None = None, allow_library_mismatch: bool = Fa
 load.cache_clear = model.cache_clear  # forgets the loaded models (a test's "new process")
 
 
-def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None = None, steps: int = 50,
-           checkpoint: str | Path | None = None, current=safety.REST, screen: bool = False,
-           allow_library_mismatch: bool = False) -> np.ndarray:
+def sample(
+    key,
+    intent,
+    intensity,
+    num_samples: int = 1,
+    *,
+    sampler: str | None = None,
+    steps: int = 50,
+    checkpoint: str | Path | None = None,
+    current=safety.REST,
+    screen: bool = False,
+    allow_library_mismatch: bool = False,
+) -> np.ndarray:
     """Sample tendon actuation for (intent, intensity) tuples (names or indices).
 
     Args:
@@ -324,13 +366,15 @@ def sample(key, intent, intensity, num_samples: int = 1, *, sampler: str | None 
     if screen is not False:
         if screen is not True:
             raise ValueError(f"screen must be True or False, got {screen!r}")
-        return screened(key, intent, intensity, num_samples, sampler=sampler, steps=steps, checkpoint=checkpoint,
-                        current=current).u
+        return screened(
+            key, intent, intensity, num_samples, sampler=sampler, steps=steps, checkpoint=checkpoint, current=current
+        ).u
     if checkpoint is None and isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
         checkpoint = shipped_checkpoint(int(steps))
         checkpoint = None if checkpoint == DEFAULT_CHECKPOINT else checkpoint
-    return model(checkpoint, allow_library_mismatch).sample(key, intent, intensity, num_samples, sampler=sampler,
-                                                             steps=steps, current=current)
+    return model(checkpoint, allow_library_mismatch).sample(
+        key, intent, intensity, num_samples, sampler=sampler, steps=steps, current=current
+    )
 
 
 class ScreeningError(ValueError):
@@ -352,8 +396,9 @@ class Screened:
 SCREEN_BUDGET = 64  # default: at most this many candidates per tuple (4 x num_samples when larger)
 
 
-def screened(key, intent, intensity, num_samples: int = 1, *, budget: int | None = None, engine: str = "auto",
-             **sample_kwargs) -> Screened:
+def screened(
+    key, intent, intensity, num_samples: int = 1, *, budget: int | None = None, engine: str = "auto", **sample_kwargs
+) -> Screened:
     """Screened sampling: draw candidates, roll them out on the trunk in one batch per round and keep the
     feasible ones (:func:`jgrounding.sim.feasible`: stable, contact force within bounds, slow tip near
     the user) until every tuple has ``num_samples``.
@@ -374,13 +419,21 @@ def screened(key, intent, intensity, num_samples: int = 1, *, budget: int | None
     from jgrounding import sim
     from jgrounding.evaluation import physics
 
-    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) \
-            or not 1 <= num_samples <= MAX_SAMPLES:
+    if (
+        isinstance(num_samples, bool)
+        or not isinstance(num_samples, (int, np.integer))
+        or not 1 <= num_samples <= MAX_SAMPLES
+    ):
         raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
     budget = max(SCREEN_BUDGET, 4 * int(num_samples)) if budget is None else budget
-    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or not num_samples <= budget <= MAX_SAMPLES:
-        raise ValueError(f"budget must be an integer in num_samples..{MAX_SAMPLES} (candidates per tuple), "
-                         f"got {budget!r}")
+    if (
+        isinstance(budget, bool)
+        or not isinstance(budget, (int, np.integer))
+        or not num_samples <= budget <= MAX_SAMPLES
+    ):
+        raise ValueError(
+            f"budget must be an integer in num_samples..{MAX_SAMPLES} (candidates per tuple), got {budget!r}"
+        )
     engine = sim.resolve_engine(engine)
     key = as_key(key)
     single = _sequence(intent) is None and _sequence(intensity) is None
@@ -393,8 +446,10 @@ def screened(key, intent, intensity, num_samples: int = 1, *, budget: int | None
         u = np.asarray(sample(jax.random.fold_in(key, rounds), intent, intensity, num_samples=c, **sample_kwargs))
         u = u.reshape(-1, c, *u.shape[-2:])  # (N, c, 150, N_u)
         if u.shape[-1] != sim.NUM_CHANNELS:
-            raise ValueError(f"screening simulates the built-in {sim.NUM_CHANNELS}-tendon trunk; this checkpoint "
-                             f"has {u.shape[-1]} tendons")
+            raise ValueError(
+                f"screening simulates the built-in {sim.NUM_CHANNELS}-tendon trunk; this checkpoint "
+                f"has {u.shape[-1]} tendons"
+            )
         t0 = time.perf_counter()
         ok = (physics.margins(u.reshape(-1, *u.shape[-2:]), engine=engine) >= 0).reshape(u.shape[:2])
         seconds += time.perf_counter() - t0
@@ -410,7 +465,8 @@ def screened(key, intent, intensity, num_samples: int = 1, *, budget: int | None
             f"the budget of {budget} candidates per tuple (worst: {have.min()} passed; first such tuple: "
             f"position {short[0]}). Feasible = stable, contact force <= {sim.MAX_CONTACT_FORCE} N and tip speed "
             f"<= {sim.MAX_TIP_SPEED_NEAR_USER} m/s within {sim.NEAR_USER_DISTANCE} m of the user; pass a larger "
-            "budget= or ask for fewer samples")
+            "budget= or ask for fewer samples"
+        )
     out = np.stack([np.stack(k) for k in kept])  # (N, K, 150, N_u)
     if single:
         out = out[0, 0] if num_samples == 1 else out[0]

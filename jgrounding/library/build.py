@@ -24,14 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding import safety
-
-from jgrounding.library import primitives
-
-from jgrounding.library import responses
-
-from jgrounding.library import screening
-
 from jgrounding.actuation import splines
+from jgrounding.library import primitives, responses, screening
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
 FORMAT_VERSION = 1
@@ -99,8 +93,11 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
     accepted = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     per_check = {c: 0 for c in screening.CHECKS}
     # One-to-many: a tuple's realizations split evenly between its variants (primitives.variants_of).
-    plan = {(m, z): primitives.variants_of(m, config.realizations)
-            for m in range(NUM_INTENTS) for z in range(NUM_INTENSITIES)}
+    plan = {
+        (m, z): primitives.variants_of(m, config.realizations)
+        for m in range(NUM_INTENTS)
+        for z in range(NUM_INTENSITIES)
+    }
     need = {(m, z, int(v)): int((vs == v).sum()) for (m, z), vs in plan.items() for v in np.unique(vs)}
     rngs = {key: np.random.default_rng([config.seed, *key]) for key in need}
     found = {key: [] for key in need}
@@ -109,8 +106,9 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         todo = [k for k in need if len(found[k]) < need[k]]
         if not todo:
             break
-        cand = np.stack([primitives.candidate(rngs[k], k[0], k[1], k[2])
-                         for k in todo for _ in range(config.candidates_per_round)])
+        cand = np.stack(
+            [primitives.candidate(rngs[k], k[0], k[1], k[2]) for k in todo for _ in range(config.candidates_per_round)]
+        )
         keys = np.repeat(np.array(todo), config.candidates_per_round, axis=0)
         controls, raw, u = _reduce(cand, config.num_controls)
         checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1])
@@ -124,7 +122,11 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
                     found[key].append((controls[i], u[i]))
         bar.update(1)
     bar.close()
-    short = {f"{INTENTS[m]}/{INTENSITIES[z]}/variant {v}": len(f) for (m, z, v), f in found.items() if len(f) < need[(m, z, v)]}
+    short = {
+        f"{INTENTS[m]}/{INTENSITIES[z]}/variant {v}": len(f)
+        for (m, z, v), f in found.items()
+        if len(f) < need[(m, z, v)]
+    }
     if short:
         raise RuntimeError(f"screening kept too few realizations for {short}; raise BuildConfig.max_rounds")
     split_rng = np.random.default_rng([config.seed, 999])
@@ -142,8 +144,9 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
                 keep["intensity"].append(z)
                 keep["realization"].append(r)
                 keep["variant"].append(int(v))
-                keep["texts"].append(responses.response_texts(m, z, config.texts_per_record, text_rng,
-                                                              heldout=r == held))
+                keep["texts"].append(
+                    responses.response_texts(m, z, config.texts_per_record, text_rng, heldout=r == held)
+                )
                 heldout.append(r == held)
     arrays = {
         "u": np.asarray(keep["u"], np.float32),
@@ -168,8 +171,11 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         "candidates_tried": int(tried.sum()),
         "candidates_accepted": int(accepted.sum()),
         "passed_per_check": per_check,
-        "acceptance_rate": {f"{INTENTS[m]}/{INTENSITIES[z]}": round(float(accepted[m, z] / tried[m, z]), 4)
-                            for m in range(NUM_INTENTS) for z in range(NUM_INTENSITIES)},
+        "acceptance_rate": {
+            f"{INTENTS[m]}/{INTENSITIES[z]}": round(float(accepted[m, z] / tried[m, z]), 4)
+            for m in range(NUM_INTENTS)
+            for z in range(NUM_INTENSITIES)
+        },
         "regenerate": REGENERATE,
     }
     return arrays, card
@@ -208,9 +214,14 @@ def file_hash(path: str | Path = DEFAULT_PATH) -> str:
 
 
 def _split(arrays, mask) -> Split:
-    return Split(u=arrays["u"][mask], controls=arrays["controls"][mask], intent=arrays["intent"][mask],
-                 intensity=arrays["intensity"][mask], realization=arrays["realization"][mask],
-                 texts=tuple(tuple(str(t) for t in row) for row in arrays["texts"][mask]))
+    return Split(
+        u=arrays["u"][mask],
+        controls=arrays["controls"][mask],
+        intent=arrays["intent"][mask],
+        intensity=arrays["intensity"][mask],
+        realization=arrays["realization"][mask],
+        texts=tuple(tuple(str(t) for t in row) for row in arrays["texts"][mask]),
+    )
 
 
 def load_library(path: str | Path | None = None) -> Library:
@@ -226,12 +237,16 @@ def load_library(path: str | Path | None = None) -> Library:
     except (OSError, ValueError) as e:
         raise ValueError(f"library card {card_path} is missing or unreadable ({e}); regenerate with `{REGENERATE}`")
     if card.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"library {path} has format_version {card.get('format_version')!r}, expected "
-                         f"{FORMAT_VERSION}; regenerate with `{REGENERATE}`")
+        raise ValueError(
+            f"library {path} has format_version {card.get('format_version')!r}, expected "
+            f"{FORMAT_VERSION}; regenerate with `{REGENERATE}`"
+        )
     raw = path.read_bytes()
     if card.get("sha256") and hashlib.sha256(raw).hexdigest() != card["sha256"]:
-        raise ValueError(f"library {path} does not match the sha256 in {card_path} (corrupt or edited); "
-                         f"regenerate with `{REGENERATE}`")
+        raise ValueError(
+            f"library {path} does not match the sha256 in {card_path} (corrupt or edited); "
+            f"regenerate with `{REGENERATE}`"
+        )
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as f:
             arrays = {k: f[k] for k in f.files}
@@ -242,7 +257,6 @@ def load_library(path: str | Path | None = None) -> Library:
         raise ValueError(f"library {path} lacks arrays {sorted(missing)}; regenerate with `{REGENERATE}`")
     held = arrays["heldout"].astype(bool)
     return Library(train=_split(arrays, ~held), heldout=_split(arrays, held), meta=card, path=str(path))
-
 
 
 # Brackets of the success metric (SPEC §3): expected values over the library, exact (every training
@@ -261,8 +275,12 @@ def _bracket_pools(lib) -> dict:
     tr, ho = lib.train, lib.heldout
     same = tr.intent[None] == ho.intent[:, None]
     dz = np.abs(tr.intensity[None] - ho.intensity[:, None])
-    return {"oracle": same & (dz == 0), "wrong_intent": ~same & (dz == 0),
-            "far_intensity": same & (dz >= 2), "adjacent_intensity": same & (dz == 1)}
+    return {
+        "oracle": same & (dz == 0),
+        "wrong_intent": ~same & (dz == 0),
+        "far_intensity": same & (dz >= 2),
+        "adjacent_intensity": same & (dz == 1),
+    }
 
 
 def bracket_distances(lib) -> dict[str, list[np.ndarray]]:
@@ -279,7 +297,7 @@ def bracket_distances(lib) -> dict[str, list[np.ndarray]]:
 
 def _ngrams(text: str, n: int = 4) -> set:
     words = "".join(c.lower() if c.isalnum() or c == "'" else " " for c in text).split()
-    return {tuple(words[i:i + n]) for i in range(len(words) - n + 1)}
+    return {tuple(words[i : i + n]) for i in range(len(words) - n + 1)}
 
 
 def heldout_overlap(lib, n: int = 4) -> float:
@@ -287,7 +305,9 @@ def heldout_overlap(lib, n: int = 4) -> float:
     shared = total = 0
     for m in np.unique(lib.heldout.intent):
         seen = set().union(*(_ngrams(t, n) for row, i in zip(lib.train.texts, lib.train.intent) if i == m for t in row))
-        grams = [g for row, i in zip(lib.heldout.texts, lib.heldout.intent) if i == m for t in row for g in _ngrams(t, n)]
+        grams = [
+            g for row, i in zip(lib.heldout.texts, lib.heldout.intent) if i == m for t in row for g in _ngrams(t, n)
+        ]
         shared += sum(g in seen for g in grams)
         total += len(grams)
     return shared / max(total, 1)
@@ -326,8 +346,12 @@ def fold(lib: Library, k: int) -> Library:
     held = arrays["realization"] == k
 
     def part(mask):
-        return Split(**{name: (tuple(t for t, keep in zip(v, mask) if keep) if name == "texts" else v[mask])
-                        for name, v in arrays.items()})
+        return Split(
+            **{
+                name: (tuple(t for t, keep in zip(v, mask) if keep) if name == "texts" else v[mask])
+                for name, v in arrays.items()
+            }
+        )
 
     return Library(train=part(~held), heldout=part(held), meta={**lib.meta, "fold": k}, path=lib.path)
 

@@ -57,12 +57,20 @@ class DemonstrationError(ValueError):
     @property
     def where(self) -> str:
         """``file line N, column 'c'`` (``entry N`` in a JSON manifest, ``command N`` in a command stream)."""
-        return (self.file + (f" {self.unit} {self.line}" if self.line is not None else "")
-                + (f", column {self.column!r}" if self.column else ""))
+        return (
+            self.file
+            + (f" {self.unit} {self.line}" if self.line is not None else "")
+            + (f", column {self.column!r}" if self.column else "")
+        )
 
     def as_dict(self) -> dict:
-        return {"file": self.file, self.unit: self.line, "column": self.column, "reason": self.reason,
-                "where": self.where}
+        return {
+            "file": self.file,
+            self.unit: self.line,
+            "column": self.column,
+            "reason": self.reason,
+            "where": self.where,
+        }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,38 +109,50 @@ class Recording:
 
 # ---------------------------------------------------------------- reading and validating
 
+
 def _number(text: str, path, line: int, column: str, unit: str = "line") -> float:
     cell = text.strip()
     if not cell:
-        raise DemonstrationError(path, "empty value (a dropped sensor frame?); fill or remove the row", line, column, unit)
+        raise DemonstrationError(
+            path, "empty value (a dropped sensor frame?); fill or remove the row", line, column, unit
+        )
     try:
         x = float(cell)
     except ValueError:
         raise DemonstrationError(path, f"not a number: {cell!r}", line, column, unit) from None
     if not np.isfinite(x):
-        raise DemonstrationError(path, f"{'NaN' if np.isnan(x) else 'Inf'} value (a dropped sensor frame?)", line, column, unit)
+        raise DemonstrationError(
+            path, f"{'NaN' if np.isnan(x) else 'Inf'} value (a dropped sensor frame?)", line, column, unit
+        )
     return x
 
 
 def _read_csv(path: Path, time_column: str | None, num_tendons: int) -> tuple[np.ndarray, list[int], tuple[str, ...]]:
     """(time + tendon values ``(n, 1 + N_u)``, file line of each row, tendon column names)."""
     with open(path, newline="") as f:
-        lines = [(i + 1, ln) for i, ln in enumerate(f.read().splitlines())
-                 if ln.strip() and not ln.lstrip().startswith("#")]
+        lines = [
+            (i + 1, ln) for i, ln in enumerate(f.read().splitlines()) if ln.strip() and not ln.lstrip().startswith("#")
+        ]
     if not lines:
         raise DemonstrationError(path, "no header row and no data")
     header_line, header = lines[0][0], [h.strip() for h in next(csv.reader([lines[0][1]]))]
     names = (time_column,) if time_column else TIME_COLUMNS
     tcol = next((h for h in header if h in names), None)
     if tcol is None:
-        raise DemonstrationError(path, f"no time column: the header is {header}; name it one of "
-                                 f"{', '.join(names)} (or pass --time-column)", header_line)
+        raise DemonstrationError(
+            path,
+            f"no time column: the header is {header}; name it one of {', '.join(names)} (or pass --time-column)",
+            header_line,
+        )
     tendons = tuple(h for h in header if h != tcol and h not in IGNORED_COLUMNS)
     if len(tendons) != num_tendons:
-        raise DemonstrationError(path, f"{len(tendons)} tendon column(s) {list(tendons)}, but {num_tendons} "
-                                 f"tendon limits are declared (one column per tendon besides "
-                                 f"{tcol!r}{' and ' + '/'.join(IGNORED_COLUMNS) if IGNORED_COLUMNS else ''})",
-                                 header_line)
+        raise DemonstrationError(
+            path,
+            f"{len(tendons)} tendon column(s) {list(tendons)}, but {num_tendons} "
+            f"tendon limits are declared (one column per tendon besides "
+            f"{tcol!r}{' and ' + '/'.join(IGNORED_COLUMNS) if IGNORED_COLUMNS else ''})",
+            header_line,
+        )
     order = [header.index(tcol)] + [header.index(c) for c in tendons]
     rows, row_lines = [], []
     for number, text in lines[1:]:
@@ -151,17 +171,27 @@ def _read_command_json(path: Path, num_tendons: int) -> tuple[np.ndarray, list[i
         header, commands = doc["header"], doc["commands"]
         dt = float(header["control_dt_s"])
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise DemonstrationError(path, f"not a command stream JSON ({{'header': {{'control_dt_s': ...}}, "
-                                 f"'commands': [[...], ...]}}): {e}") from None
+        raise DemonstrationError(
+            path, f"not a command stream JSON ({{'header': {{'control_dt_s': ...}}, 'commands': [[...], ...]}}): {e}"
+        ) from None
     names = tuple(header.get("channels") or [f"tendon_{j}" for j in range(num_tendons)])
     rows = []
     for i, cmd in enumerate(commands):
         if not isinstance(cmd, list) or len(cmd) != num_tendons:
             got = len(cmd) if isinstance(cmd, list) else type(cmd).__name__
-            raise DemonstrationError(path, f"command has {got} tendon values, but {num_tendons} tendon "
-                                     "limits are declared", i + 1, unit="command")
-        rows.append([i * dt] + [_number(str(x), path, i + 1, names[j] if j < len(names) else str(j), "command")
-                                for j, x in enumerate(cmd)])
+            raise DemonstrationError(
+                path,
+                f"command has {got} tendon values, but {num_tendons} tendon limits are declared",
+                i + 1,
+                unit="command",
+            )
+        rows.append(
+            [i * dt]
+            + [
+                _number(str(x), path, i + 1, names[j] if j < len(names) else str(j), "command")
+                for j, x in enumerate(cmd)
+            ]
+        )
     return np.asarray(rows, np.float64).reshape(-1, 1 + num_tendons), list(range(1, len(rows) + 1)), names
 
 
@@ -177,27 +207,37 @@ def read_recording(path, limits, time_column: str | None = None) -> Recording:
         raise DemonstrationError(path, "file not found")
     reader = _read_command_json if path.suffix.lower() == ".json" else None
     unit = "command" if reader else "line"
-    data, line_of, columns = (reader(path, len(limits)) if reader
-                              else _read_csv(path, time_column, len(limits)))
+    data, line_of, columns = reader(path, len(limits)) if reader else _read_csv(path, time_column, len(limits))
     if len(data) < MIN_ROWS:
-        raise DemonstrationError(path, f"only {len(data)} data row(s); at least {MIN_ROWS} are needed to "
-                                 f"resample to T = {NUM_STEPS} steps")
+        raise DemonstrationError(
+            path, f"only {len(data)} data row(s); at least {MIN_ROWS} are needed to resample to T = {NUM_STEPS} steps"
+        )
     time = data[:, 0]
     step = np.diff(time)
     if np.any(step <= 0):
         i = int(np.argmax(step <= 0))
         what = "duplicate time stamp" if step[i] == 0 else "time goes backwards"
-        raise DemonstrationError(path, f"{what}: {time[i]:g} at {unit} {line_of[i]}, then {time[i + 1]:g}; time "
-                                 "must strictly increase", line_of[i + 1], "time", unit)
+        raise DemonstrationError(
+            path,
+            f"{what}: {time[i]:g} at {unit} {line_of[i]}, then {time[i + 1]:g}; time must strictly increase",
+            line_of[i + 1],
+            "time",
+            unit,
+        )
     values = data[:, 1:]
     for j, (slack, full) in enumerate(limits):
         lo, hi = min(slack, full), max(slack, full)
         bad = np.flatnonzero((values[:, j] < lo) | (values[:, j] > hi))
         if bad.size:
             i = int(bad[0])
-            raise DemonstrationError(path, f"value {values[i, j]:g} is outside the declared limits "
-                                     f"[{lo:g}, {hi:g}] of tendon {j} ({bad.size} row(s) in all)",
-                                     line_of[i], columns[j], unit)
+            raise DemonstrationError(
+                path,
+                f"value {values[i, j]:g} is outside the declared limits "
+                f"[{lo:g}, {hi:g}] of tendon {j} ({bad.size} row(s) in all)",
+                line_of[i],
+                columns[j],
+                unit,
+            )
     return Recording(time=time, values=values, columns=columns)
 
 
@@ -215,6 +255,7 @@ def resample(time: np.ndarray, values: np.ndarray, num_steps: int = NUM_STEPS) -
 
 # ---------------------------------------------------------------- manifest
 
+
 def parse_limits(text: str, num_tendons: int | None = None) -> tuple[tuple[float, float], ...]:
     """``"0:12.5,0:12.5,0:12.5"`` -> ((0, 12.5), ...); one pair with ``num_tendons`` applies to all."""
     try:
@@ -222,8 +263,10 @@ def parse_limits(text: str, num_tendons: int | None = None) -> tuple[tuple[float
     except ValueError:
         pairs = ((),)
     if not pairs or any(len(p) != 2 or not all(np.isfinite(p)) for p in pairs):
-        raise ValueError(f"limits must be 'slack:full' pairs separated by commas, one per tendon "
-                         f"(e.g. 0:12.5,0:12.5,0:12.5,0:12.5), got {text!r}")
+        raise ValueError(
+            f"limits must be 'slack:full' pairs separated by commas, one per tendon "
+            f"(e.g. 0:12.5,0:12.5,0:12.5,0:12.5), got {text!r}"
+        )
     if num_tendons is not None:
         if len(pairs) == 1:
             pairs = pairs * num_tendons
@@ -268,8 +311,9 @@ def _entry(row: dict, where: Path, line: int, unit: str) -> Entry:
         try:
             real = int(str(real).strip())
         except ValueError:
-            raise DemonstrationError(where, f"{file}: realization must be an integer, got {real!r}",
-                                     line, "realization", unit) from None
+            raise DemonstrationError(
+                where, f"{file}: realization must be an integer, got {real!r}", line, "realization", unit
+            ) from None
     return Entry(file, m, z, texts, real, line)
 
 
@@ -295,8 +339,12 @@ def read_manifest(path) -> tuple[list, dict]:
         header = [h.strip() for h in next(csv.reader([lines[0][1]]))]
         missing = {"file", "intent", "intensity"} - set(header)
         if missing:
-            raise DemonstrationError(path, f"manifest header {header} lacks {sorted(missing)}; columns: file, "
-                                     "intent, intensity[, texts][, realization]", lines[0][0])
+            raise DemonstrationError(
+                path,
+                f"manifest header {header} lacks {sorted(missing)}; columns: file, "
+                "intent, intensity[, texts][, realization]",
+                lines[0][0],
+            )
         numbered = [(n, dict(zip(header, next(csv.reader([ln]))))) for n, ln in lines[1:]]
         fields = {}
     out, unit = [], manifest_unit(path)
@@ -319,12 +367,14 @@ def find_manifest(folder: Path) -> Path:
     found = [folder / n for n in MANIFEST_NAMES if (folder / n).is_file()]
     if len(found) != 1:
         what = "no manifest" if not found else "two manifests"
-        raise DemonstrationError(folder, f"{what}: put exactly one of {' or '.join(MANIFEST_NAMES)} in the "
-                                 "folder (or pass --manifest)")
+        raise DemonstrationError(
+            folder, f"{what}: put exactly one of {' or '.join(MANIFEST_NAMES)} in the folder (or pass --manifest)"
+        )
     return found[0]
 
 
 # ---------------------------------------------------------------- the import
+
 
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
@@ -373,8 +423,10 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         raise DemonstrationError(folder, "not a folder")
     manifest = Path(manifest) if manifest else find_manifest(folder)
     if config.simulate and config.num_tendons != TRUNK_TENDONS:
-        raise ValueError(f"--simulate screens on the built-in {TRUNK_TENDONS}-tendon trunk; these data declare "
-                         f"{config.num_tendons} tendons (physics screening is only for data recorded on our trunk model)")
+        raise ValueError(
+            f"--simulate screens on the built-in {TRUNK_TENDONS}-tendon trunk; these data declare "
+            f"{config.num_tendons} tendons (physics screening is only for data recorded on our trunk model)"
+        )
     entries, _ = read_manifest(manifest)
     unit = manifest_unit(manifest)
     dropped: list[dict] = []
@@ -385,8 +437,13 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
             _fail(e, config, dropped)
             continue
         if e.file in seen:
-            _fail(DemonstrationError(manifest, f"{e.file} is listed twice (also {unit} {seen[e.file]})", e.line, "file", unit),
-                  config, dropped)
+            _fail(
+                DemonstrationError(
+                    manifest, f"{e.file} is listed twice (also {unit} {seen[e.file]})", e.line, "file", unit
+                ),
+                config,
+                dropped,
+            )
             continue
         seen[e.file] = e.line
         try:
@@ -397,16 +454,21 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         kept.append(e)
         recs.append(rec)
     if not kept:
-        raise DemonstrationError(manifest, "no valid demonstration to import"
-                                 + (f" ({len(dropped)} dropped)" if dropped else ""))
+        raise DemonstrationError(
+            manifest, "no valid demonstration to import" + (f" ({len(dropped)} dropped)" if dropped else "")
+        )
     x = np.stack([resample(r.time, normalize(r.values, config.limits)) for r in recs])  # (B, T, N_u)
     controls, raw, u = _reduce(x, config.num_controls)
     intent = np.array([e.intent for e in kept], np.int32)
-    checks = screening.screen(raw, u, intent, simulate=config.simulate,
-                              intensity=np.array([e.intensity for e in kept], np.int32))
+    checks = screening.screen(
+        raw, u, intent, simulate=config.simulate, intensity=np.array([e.intensity for e in kept], np.int32)
+    )
     names = [c for c in screening.CHECKS if c in checks]
-    rejected = [{"file": e.file, "failed": [c for c in names if not checks[c][i]]}
-                for i, e in enumerate(kept) if not checks["accepted"][i]]
+    rejected = [
+        {"file": e.file, "failed": [c for c in names if not checks[c][i]]}
+        for i, e in enumerate(kept)
+        if not checks["accepted"][i]
+    ]
     ok = [i for i in range(len(kept)) if checks["accepted"][i]]
 
     by_tuple: dict[tuple[int, int], list[int]] = {}
@@ -418,8 +480,14 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         dup = sorted({r for r in given if given.count(r) > 1})
         if dup:
             lines = [kept[i].line for i in idx if kept[i].realization in dup]
-            raise DemonstrationError(manifest, f"tuple {_tuple_name(*key)}: realization id(s) {dup} used more "
-                                     f"than once ({unit}s {', '.join(map(str, lines))})", lines[-1], "realization", unit)
+            raise DemonstrationError(
+                manifest,
+                f"tuple {_tuple_name(*key)}: realization id(s) {dup} used more "
+                f"than once ({unit}s {', '.join(map(str, lines))})",
+                lines[-1],
+                "realization",
+                unit,
+            )
         free = (r for r in range(len(idx) + len(given) + 1) if r not in given)
         for i in idx:
             realization[i] = kept[i].realization if kept[i].realization is not None else next(free)
@@ -431,10 +499,13 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         if len(idx) < need:
             rej = [f"{r['file']} ({', '.join(r['failed'])})" for r in rejected if tuple_of[r["file"]] == key]
             err = DemonstrationError(
-                manifest, f"tuple {_tuple_name(*key)} has {len(idx)} valid realization(s) "
+                manifest,
+                f"tuple {_tuple_name(*key)} has {len(idx)} valid realization(s) "
                 f"({', '.join(kept[i].file for i in idx)}{'; rejected by screening: ' + ', '.join(rej) if rej else ''}); "
                 f"the train/held-out split needs at least {need} ({config.heldout_per_tuple} held out + 1 to train)",
-                kept[idx[0]].line, unit=unit)
+                kept[idx[0]].line,
+                unit=unit,
+            )
             _fail(err, config, dropped)
             short_tuples.append(key)
     for key in short_tuples:
@@ -483,8 +554,14 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         "num_steps": NUM_STEPS,
         "num_controls": int(controls.shape[-1]),
         "reduced": config.num_controls is not None,
-        "screening": names + ([] if config.simulate else
-                              [f"physics skipped: {'pass --simulate if these are recordings of the built-in trunk model' if config.num_tendons == TRUNK_TENDONS else f'the built-in simulator is the {TRUNK_TENDONS}-tendon trunk, these data have N_u = {config.num_tendons}'}"]),
+        "screening": names
+        + (
+            []
+            if config.simulate
+            else [
+                f"physics skipped: {'pass --simulate if these are recordings of the built-in trunk model' if config.num_tendons == TRUNK_TENDONS else f'the built-in simulator is the {TRUNK_TENDONS}-tendon trunk, these data have N_u = {config.num_tendons}'}"
+            ]
+        ),
         "num_records": len(order),
         "num_train": int((~arrays["heldout"]).sum()),
         "num_heldout": int(arrays["heldout"].sum()),
@@ -501,25 +578,38 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
 
 # ---------------------------------------------------------------- command line
 
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m jgrounding.library",
-                                description="Demonstration libraries: import a folder of recorded motions.")
+    p = argparse.ArgumentParser(
+        prog="python -m jgrounding.library", description="Demonstration libraries: import a folder of recorded motions."
+    )
     sub = p.add_subparsers(dest="command", required=True)
-    q = sub.add_parser("import", help="import a folder of recorded demonstrations into a library npz",
-                       description=__doc__.split("\n\n")[0])
+    q = sub.add_parser(
+        "import",
+        help="import a folder of recorded demonstrations into a library npz",
+        description=__doc__.split("\n\n")[0],
+    )
     q.add_argument("folder", help="folder with one CSV per demonstration and manifest.csv / manifest.json")
     q.add_argument("--out", required=True, help="library file to write (.npz; its card goes beside it as .json)")
     q.add_argument("--manifest", help="manifest path (default: DIR/manifest.json or DIR/manifest.csv)")
-    q.add_argument("--limits", help="per-tendon 'slack:full' in the lab's units, comma-separated (one per tendon, or "
-                   "one pair for all with --tendons); overrides none: the manifest's limits must agree")
+    q.add_argument(
+        "--limits",
+        help="per-tendon 'slack:full' in the lab's units, comma-separated (one per tendon, or "
+        "one pair for all with --tendons); overrides none: the manifest's limits must agree",
+    )
     q.add_argument("--tendons", type=int, help="number of tendons N_u when --limits gives one pair for all")
     q.add_argument("--controls", type=int, metavar="P", help="reduce by Eq. (ci) to P Catmull-Rom controls per tendon")
-    q.add_argument("--simulate", action="store_true", help="also screen in simulation on the built-in 4-tendon trunk "
-                   "(for recordings of our trunk model)")
+    q.add_argument(
+        "--simulate",
+        action="store_true",
+        help="also screen in simulation on the built-in 4-tendon trunk (for recordings of our trunk model)",
+    )
     q.add_argument("--heldout", type=int, default=1, help="held-out realizations per tuple (default 1)")
     q.add_argument("--seed", type=int, default=0, help="seed of the train/held-out split (default 0)")
     q.add_argument("--time-column", help=f"name of the time column (default: one of {', '.join(TIME_COLUMNS)})")
-    q.add_argument("--drop-invalid", action="store_true", help="drop bad files and tuples (all listed) instead of stopping")
+    q.add_argument(
+        "--drop-invalid", action="store_true", help="drop bad files and tuples (all listed) instead of stopping"
+    )
     return p
 
 
@@ -539,16 +629,24 @@ def config_from_args(args, parser) -> tuple[ImportConfig, Path]:
         parser.error(f"--limits {flag} disagree with the limits in {manifest} {declared}; give them once")
     limits = flag or declared
     if not limits:
-        parser.error(f"declare each tendon's limits: --limits slack:full,... or \"limits\" in a JSON manifest ({manifest})")
+        parser.error(
+            f'declare each tendon\'s limits: --limits slack:full,... or "limits" in a JSON manifest ({manifest})'
+        )
     limits = _check_limits(limits, "--limits")
     if args.controls is not None and not 2 <= args.controls <= NUM_STEPS:
         parser.error(f"--controls must be in 2..{NUM_STEPS}, got {args.controls}")
     if args.heldout < 1:
         parser.error(f"--heldout must be >= 1, got {args.heldout}")
     simulate = bool(args.simulate or fields.get("simulate", False))
-    return ImportConfig(limits=limits, num_controls=args.controls, simulate=simulate, heldout_per_tuple=args.heldout,
-                        seed=args.seed, time_column=args.time_column or fields.get("time_column"),
-                        drop_invalid=args.drop_invalid), manifest
+    return ImportConfig(
+        limits=limits,
+        num_controls=args.controls,
+        simulate=simulate,
+        heldout_per_tuple=args.heldout,
+        seed=args.seed,
+        time_column=args.time_column or fields.get("time_column"),
+        drop_invalid=args.drop_invalid,
+    ), manifest
 
 
 def main(argv=None) -> int:
@@ -571,7 +669,9 @@ def main(argv=None) -> int:
             print(f"note: {note}")
     card["regenerate"] = "python -m jgrounding.library " + " ".join(argv if argv is not None else sys.argv[1:])
     path = library.save(arrays, card, args.out)
-    print(f"wrote {path} and {path.with_suffix('.json')}: {card['num_records']} demonstrations "
-          f"({card['num_train']} train / {card['num_heldout']} held out) of {len(card['counts_per_tuple'])} tuples, "
-          f"N_u = {card['num_tendons']}, {len(card['rejected'])} rejected, {len(card['dropped'])} dropped")
+    print(
+        f"wrote {path} and {path.with_suffix('.json')}: {card['num_records']} demonstrations "
+        f"({card['num_train']} train / {card['num_heldout']} held out) of {len(card['counts_per_tuple'])} tuples, "
+        f"N_u = {card['num_tendons']}, {len(card['rejected'])} rejected, {len(card['dropped'])} dropped"
+    )
     return 0

@@ -40,37 +40,47 @@ MIRROR = np.array([0, 3, 2, 1])  # left <-> right tendons
 # the four key moments; 0 slack .. 1 largest safe pull.
 _ANCHORS = {
     # rises toward the user on its left side and waves (lateral pull pulses over a left-held bend)
-    "greeting": ([.15, .8, .8, .5], [.6, .95, .45, .95], [.05, .05, .05, .05], [.05, .05, .6, .05]),
+    "greeting": ([0.15, 0.8, 0.8, 0.5], [0.6, 0.95, 0.45, 0.95], [0.05, 0.05, 0.05, 0.05], [0.05, 0.05, 0.6, 0.05]),
     # slow lowering wave that ends retracted (all tendons co-contracted)
-    "farewell": ([.05, .05, .05, .3], [.85, .6, .9, .5], [.05, .2, .3, .6], [.05, .05, .05, .05]),
+    "farewell": ([0.05, 0.05, 0.05, 0.3], [0.85, 0.6, 0.9, 0.5], [0.05, 0.2, 0.3, 0.6], [0.05, 0.05, 0.05, 0.05]),
     # slow approach toward the user's left shoulder, then gentle patting (toward pull pulses)
-    "comforting": ([.05, .7, .4, .85], [.6, .85, .85, .85], [.05, .05, .05, .05], [.05, .05, .05, .05]),
+    "comforting": ([0.05, 0.7, 0.4, 0.85], [0.6, 0.85, 0.85, 0.85], [0.05, 0.05, 0.05, 0.05], [0.05, 0.05, 0.05, 0.05]),
     # leans toward the user and holds nearly still, tip slightly tilted
-    "attentive_listening": ([.55, .6, .6, .6], [.35, .35, .35, .35], [.05, .05, .05, .05], [.05, .05, .05, .05]),
+    "attentive_listening": (
+        [0.55, 0.6, 0.6, 0.6],
+        [0.35, 0.35, 0.35, 0.35],
+        [0.05, 0.05, 0.05, 0.05],
+        [0.05, 0.05, 0.05, 0.05],
+    ),
     # extends and probes on the left side of the object, sniffing side to side
-    "curiosity": ([.3, .35, .35, .3], [.6, .95, .45, .95], [.35, .05, .05, .05], [.05, .05, .5, .05]),
+    "curiosity": ([0.3, 0.35, 0.35, 0.3], [0.6, 0.95, 0.45, 0.95], [0.35, 0.05, 0.05, 0.05], [0.05, 0.05, 0.5, 0.05]),
     # wide curl around the user, wrapping from the robot's left
-    "embracing": ([.05, .7, .95, .95], [.6, .9, .9, .9], [.05, .05, .05, .05], [.05, .05, .05, .05]),
+    "embracing": ([0.05, 0.7, 0.95, 0.95], [0.6, 0.9, 0.9, 0.9], [0.05, 0.05, 0.05, 0.05], [0.05, 0.05, 0.05, 0.05]),
     # retracts (co-contraction) and bends away from the user
-    "withdrawal": ([.05, .05, .05, .05], [.05, .35, .4, .4], [.15, .8, .95, .95], [.05, .2, .3, .3]),
+    "withdrawal": ([0.05, 0.05, 0.05, 0.05], [0.05, 0.35, 0.4, 0.4], [0.15, 0.8, 0.95, 0.95], [0.05, 0.2, 0.3, 0.3]),
     # curls the tip inward into a tight spiral near the body, to the robot's right (strong lateral curl)
-    "coiling": ([.05, .2, .35, .35], [.05, .05, .05, .05], [.05, .3, .45, .45], [.6, .85, .95, .95]),
+    "coiling": ([0.05, 0.2, 0.35, 0.35], [0.05, 0.05, 0.05, 0.05], [0.05, 0.3, 0.45, 0.45], [0.6, 0.85, 0.95, 0.95]),
     # loose bouncy pendulum: lateral swings with a little away-pull
-    "playful_swing": ([.05, .05, .05, .05], [.95, .05, .95, .05], [.3, .45, .3, .45], [.05, .95, .05, .95]),
+    "playful_swing": (
+        [0.05, 0.05, 0.05, 0.05],
+        [0.95, 0.05, 0.95, 0.05],
+        [0.3, 0.45, 0.3, 0.45],
+        [0.05, 0.95, 0.05, 0.95],
+    ),
     # bobs up and down: co-contraction pulses (shorten / lengthen) with a forward lean
-    "nodding": ([.35, .85, .35, .85], [.05, .55, .05, .55], [.05, .5, .05, .5], [.05, .55, .05, .55]),
+    "nodding": ([0.35, 0.85, 0.35, 0.85], [0.05, 0.55, 0.05, 0.55], [0.05, 0.5, 0.05, 0.5], [0.05, 0.55, 0.05, 0.55]),
     # shakes side to side: lateral oscillation with a co-contracted away tendon (stiff, upright)
-    "refusing": ([.05, .05, .05, .05], [.05, .85, .05, .85], [.6, .6, .6, .6], [.85, .05, .85, .05]),
+    "refusing": ([0.05, 0.05, 0.05, 0.05], [0.05, 0.85, 0.05, 0.85], [0.6, 0.6, 0.6, 0.6], [0.85, 0.05, 0.85, 0.05]),
     # curls the tip back toward the robot from its left: away-pull pulses over a left-held bend
-    "beckoning": ([.45, .25, .45, .25], [.6, .85, .85, .85], [.15, .9, .25, .9], [.05, .05, .05, .05]),
+    "beckoning": ([0.45, 0.25, 0.45, 0.25], [0.6, 0.85, 0.85, 0.85], [0.15, 0.9, 0.25, 0.9], [0.05, 0.05, 0.05, 0.05]),
     # extends toward a target on the user's left and holds
-    "pointing": ([.15, .9, .9, .9], [.6, .85, .85, .85], [.05, .5, .5, .5], [.05, .05, .05, .05]),
+    "pointing": ([0.15, 0.9, 0.9, 0.9], [0.6, 0.85, 0.85, 0.85], [0.05, 0.5, 0.5, 0.5], [0.05, 0.05, 0.05, 0.05]),
     # rises high with energetic flourishes: all tendons strong (shortened, raised), lateral flourish
-    "celebrating": ([.55, .95, .6, .95], [.5, .95, .3, .95], [.55, .95, .6, .95], [.5, .3, .95, .3]),
+    "celebrating": ([0.55, 0.95, 0.6, 0.95], [0.5, 0.95, 0.3, 0.95], [0.55, 0.95, 0.6, 0.95], [0.5, 0.3, 0.95, 0.3]),
     # relaxes and droops: almost slack, slow
-    "resting": ([.1, .05, .05, .05], [.1, .05, .05, .05], [.1, .05, .05, .05], [.1, .05, .05, .05]),
+    "resting": ([0.1, 0.05, 0.05, 0.05], [0.1, 0.05, 0.05, 0.05], [0.1, 0.05, 0.05, 0.05], [0.1, 0.05, 0.05, 0.05]),
     # reaches toward the user with the tip curled upward, handing over from its left
-    "offering": ([.05, .5, .95, .95], [.6, .85, .85, .85], [.05, .05, .05, .05], [.05, .3, .3, .3]),
+    "offering": ([0.05, 0.5, 0.95, 0.95], [0.6, 0.85, 0.85, 0.85], [0.05, 0.05, 0.05, 0.05], [0.05, 0.3, 0.3, 0.3]),
 }
 ANCHORS = np.array([np.array(_ANCHORS[m], dtype=np.float64) for m in INTENTS])  # (16, 4, 4)
 
@@ -94,8 +104,9 @@ SPLIT = np.array([m in VARIANTS for m in INTENTS])
 
 REACH = np.array([2 if m in ("withdrawal", "coiling", "resting", "refusing") else 0 for m in INTENTS])
 # Intents that lean toward the user without touching: their toward-user pull stays below contact.
-NO_CONTACT = np.array([m in ("attentive_listening", "nodding", "celebrating", "greeting", "pointing", "refusing")
-                       for m in INTENTS])
+NO_CONTACT = np.array(
+    [m in ("attentive_listening", "nodding", "celebrating", "greeting", "pointing", "refusing") for m in INTENTS]
+)
 
 
 def subtle_anchor(poses: np.ndarray, reach: int) -> np.ndarray:
@@ -156,8 +167,14 @@ def _interpolate(poses: np.ndarray, times: np.ndarray, num_steps: int) -> np.nda
     return _ease(poses[:, seg], poses[:, seg + 1], s).T
 
 
-def candidate(rng: np.random.Generator, intent: int, intensity: int, variant: int = 0,
-              variation: Variation = Variation(), num_steps: int = NUM_STEPS) -> np.ndarray:
+def candidate(
+    rng: np.random.Generator,
+    intent: int,
+    intensity: int,
+    variant: int = 0,
+    variation: Variation = Variation(),
+    num_steps: int = NUM_STEPS,
+) -> np.ndarray:
     """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``."""
     poses = key_poses(intent, variant, intensity)
     if not SPLIT[intent]:

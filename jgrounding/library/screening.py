@@ -44,8 +44,9 @@ RULES = {
     "attentive_listening": lambda f, z: _reach(f, z) & _respectful(f, z),
     "curiosity": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.2),
     "embracing": lambda f, z: (f["curvature_max"] > 1.4) & _near(f, z) & _reach(f, z),
-    "withdrawal": lambda f, z: (f["retreat_from_user"] > np.take((-0.01, 0.02, 0.05, 0.08), z))
-                               & (f["reach_toward_user"] < 0.05),
+    "withdrawal": lambda f, z: (
+        (f["retreat_from_user"] > np.take((-0.01, 0.02, 0.05, 0.08), z)) & (f["reach_toward_user"] < 0.05)
+    ),
     "coiling": lambda f, z: (f["curvature_max"] > 1.2) & (f["reach_toward_user"] < 0.08),
     "playful_swing": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.3),
     "nodding": lambda f, z: (f["vertical_reversals"] >= 2) & _respectful(f, z),
@@ -61,8 +62,9 @@ assert set(RULES) == set(INTENTS)
 CHECKS = ("bounds", "smooth", "feasible", "semantic")
 
 
-def screen(raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool = True,
-           intensity: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def screen(
+    raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool = True, intensity: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """Checks for reconstructions ``raw`` ``(B, T, N_u)`` and their gated form ``u``; intents ``(B,)``.
 
     Returns a dict of boolean ``(B,)`` arrays, one per check in :data:`CHECKS`, plus ``"accepted"``.

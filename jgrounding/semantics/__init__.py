@@ -16,8 +16,16 @@ import argparse
 import numpy as np
 
 from jgrounding.semantics.embedded import (  # noqa: F401  (re-exported)
-    ASSET, CONFIDENCE_THRESHOLD, MAX_CHARS, compute_intent_embeddings, embed, features, ground_cues, ground_embedded,
-    intent_embeddings, intent_scores,
+    ASSET,
+    CONFIDENCE_THRESHOLD,
+    MAX_CHARS,
+    compute_intent_embeddings,
+    embed,
+    features,
+    ground_cues,
+    ground_embedded,
+    intent_embeddings,
+    intent_scores,
 )
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
@@ -52,8 +60,10 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
     try:  # the tokenizer (and any server) needs text that encodes as UTF-8
         text.encode("utf-8")
     except UnicodeEncodeError as e:
-        raise ValueError(f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
-                         "give a str that encodes as UTF-8") from None
+        raise ValueError(
+            f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
+            "give a str that encodes as UTF-8"
+        ) from None
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
     if backend == "cues":
@@ -85,5 +95,3 @@ def main(argv=None) -> int:
     for t in args.text:
         print(ground(t))
     return 0
-
-

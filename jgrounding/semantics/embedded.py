@@ -21,8 +21,6 @@ condition on, shipped in ``assets/intent_embeddings.npz`` (``python -m jgroundin
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import functools
 import re
 from pathlib import Path
@@ -34,49 +32,143 @@ from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 ASSET = Path(__file__).resolve().parents[2] / "assets" / "intent_embeddings.npz"
-MAX_CHARS = 4000          # ground() reads at most this many characters
-MAX_TOKENS = 256          # the encoder truncates here (all-MiniLM-L6-v2's max_seq_length)
+MAX_CHARS = 4000  # ground() reads at most this many characters
+MAX_TOKENS = 256  # the encoder truncates here (all-MiniLM-L6-v2's max_seq_length)
 CONFIDENCE_THRESHOLD = 0.35  # the cue-list reducer's threshold (the trained head ships its own, calibrated on dev)
-MIN_SIMILARITY = 0.30     # best intent score under which nothing in spec C resembles the text
+MIN_SIMILARITY = 0.30  # best intent score under which nothing in spec C resembles the text
 INTENSITY_WEIGHT = 0.6
 
 # Cue phrases of the grounding specification C: action-centred ways people phrase each behaviour.
 # Prototypes for Eq. (3) are the canonical description d_m plus these; never evaluation sentences.
 CUES = {
-    "greeting": ["say hello", "greet the user", "wave hi", "welcome them", "greet the person who just arrived",
-                 "give a friendly hello wave to the newcomer"],
-    "farewell": ["say goodbye", "wave farewell", "see you later", "bid farewell as they leave",
-                 "the user is leaving, wave bye", "send them off with a goodbye"],
-    "comforting": ["comfort the sad user", "console and soothe them gently", "pat them reassuringly",
-                   "respond calmly to sadness", "the user is upset or crying, reassure them with a soft touch",
-                   "stroke their shoulder to calm them down"],
-    "attentive_listening": ["listen carefully", "pay attention to what they say", "lean in and listen",
-                            "show I am listening", "stay still and attentive while the user talks",
-                            "hear them out quietly"],
-    "curiosity": ["investigate the object", "explore with interest", "sniff around curiously",
-                  "check out something new", "examine the unfamiliar thing", "probe and inspect what is there"],
-    "embracing": ["give a hug", "hug the user", "wrap around them warmly", "embrace them",
-                  "hold them close in a cuddle", "wrap the trunk around the person"],
-    "withdrawal": ["back off", "give them space", "move away", "retreat from the user",
-                   "pull back, they are uncomfortable", "retract away from the person"],
-    "coiling": ["curl up shyly", "feel shy and self-soothe", "coil up tightly", "hide bashfully",
-                "curl into itself out of embarrassment", "tuck the trunk in, timid and nervous"],
-    "playful_swing": ["play around", "swing playfully", "be silly and bouncy", "dance to the music",
-                      "sway back and forth for fun", "swing like a pendulum to play with the kids"],
-    "nodding": ["nod yes", "agree", "acknowledge with a nod", "show understanding", "bob up and down to agree",
-                "confirm that I understood"],
-    "refusing": ["say no", "refuse", "decline the request", "shake no", "that is not allowed, disagree",
-                 "reject the offer by shaking the trunk"],
-    "beckoning": ["invite them to come closer", "come here", "beckon the user over", "ask them to approach",
-                  "call the person over to us", "gesture for them to come near"],
-    "pointing": ["point at it", "show the direction", "indicate where it is", "point the way",
-                 "show them which way to go", "direct their attention to the object over there"],
-    "celebrating": ["celebrate", "cheer for the good news", "congratulate them joyfully", "trumpet with excitement",
-                    "celebrate the victory", "party because they succeeded"],
-    "resting": ["relax", "rest quietly", "stay calm and idle", "take a break and droop", "go to sleep",
-                "nothing to do, settle down and hang loose"],
-    "offering": ["hand it over", "give them the object", "offer something", "pass it to them",
-                 "present the gift to the user", "hold out the item for them to take"],
+    "greeting": [
+        "say hello",
+        "greet the user",
+        "wave hi",
+        "welcome them",
+        "greet the person who just arrived",
+        "give a friendly hello wave to the newcomer",
+    ],
+    "farewell": [
+        "say goodbye",
+        "wave farewell",
+        "see you later",
+        "bid farewell as they leave",
+        "the user is leaving, wave bye",
+        "send them off with a goodbye",
+    ],
+    "comforting": [
+        "comfort the sad user",
+        "console and soothe them gently",
+        "pat them reassuringly",
+        "respond calmly to sadness",
+        "the user is upset or crying, reassure them with a soft touch",
+        "stroke their shoulder to calm them down",
+    ],
+    "attentive_listening": [
+        "listen carefully",
+        "pay attention to what they say",
+        "lean in and listen",
+        "show I am listening",
+        "stay still and attentive while the user talks",
+        "hear them out quietly",
+    ],
+    "curiosity": [
+        "investigate the object",
+        "explore with interest",
+        "sniff around curiously",
+        "check out something new",
+        "examine the unfamiliar thing",
+        "probe and inspect what is there",
+    ],
+    "embracing": [
+        "give a hug",
+        "hug the user",
+        "wrap around them warmly",
+        "embrace them",
+        "hold them close in a cuddle",
+        "wrap the trunk around the person",
+    ],
+    "withdrawal": [
+        "back off",
+        "give them space",
+        "move away",
+        "retreat from the user",
+        "pull back, they are uncomfortable",
+        "retract away from the person",
+    ],
+    "coiling": [
+        "curl up shyly",
+        "feel shy and self-soothe",
+        "coil up tightly",
+        "hide bashfully",
+        "curl into itself out of embarrassment",
+        "tuck the trunk in, timid and nervous",
+    ],
+    "playful_swing": [
+        "play around",
+        "swing playfully",
+        "be silly and bouncy",
+        "dance to the music",
+        "sway back and forth for fun",
+        "swing like a pendulum to play with the kids",
+    ],
+    "nodding": [
+        "nod yes",
+        "agree",
+        "acknowledge with a nod",
+        "show understanding",
+        "bob up and down to agree",
+        "confirm that I understood",
+    ],
+    "refusing": [
+        "say no",
+        "refuse",
+        "decline the request",
+        "shake no",
+        "that is not allowed, disagree",
+        "reject the offer by shaking the trunk",
+    ],
+    "beckoning": [
+        "invite them to come closer",
+        "come here",
+        "beckon the user over",
+        "ask them to approach",
+        "call the person over to us",
+        "gesture for them to come near",
+    ],
+    "pointing": [
+        "point at it",
+        "show the direction",
+        "indicate where it is",
+        "point the way",
+        "show them which way to go",
+        "direct their attention to the object over there",
+    ],
+    "celebrating": [
+        "celebrate",
+        "cheer for the good news",
+        "congratulate them joyfully",
+        "trumpet with excitement",
+        "celebrate the victory",
+        "party because they succeeded",
+    ],
+    "resting": [
+        "relax",
+        "rest quietly",
+        "stay calm and idle",
+        "take a break and droop",
+        "go to sleep",
+        "nothing to do, settle down and hang loose",
+    ],
+    "offering": [
+        "hand it over",
+        "give them the object",
+        "offer something",
+        "pass it to them",
+        "present the gift to the user",
+        "hold out the item for them to take",
+    ],
 }
 
 # Lexical cues of C: words that name an intent's action outright. A match lowers L_sem for that intent
@@ -104,26 +196,140 @@ _LEXICAL_RE = {m: re.compile(p, re.IGNORECASE) for m, p in LEXICAL.items()}
 
 # Degree cues: words that pull the intensity estimate toward a level (0 subtle .. 3 emphatic).
 DEGREE = {
-    0: ["slightly", "slight", "subtly", "subtle", "barely", "a little", "a bit", "a tiny bit", "gently", "softly",
-        "quietly", "small", "faint", "faintly", "tiny", "minimal", "hint", "lightly", "light", "discreet",
-        "discreetly", "politely", "cautious", "cautiously", "modest", "mostly", "just a bit", "understated",
-        "low-key", "restrained", "delicately", "tentatively", "briefly"],
-    1: ["calmly", "moderately", "normally", "comfortable", "relaxed", "steady", "somewhat", "moderate",
-        "friendly", "simple", "simply", "casually", "some", "regular", "ordinary", "easy"],
-    2: ["clearly", "clear", "noticeably", "noticeable", "expressive", "big", "lively", "strongly", "strong",
-        "warmly", "very", "really", "obvious", "obviously", "pronounced", "definitely", "firm", "firmly",
-        "eagerly", "closely", "deliberate", "deliberately", "heartfelt", "tenderly", "fully", "plenty",
-        "visibly", "energetic", "happily", "large"],
-    3: ["wildly", "wild", "emphatically", "emphatic", "enthusiastically", "extremely", "full energy",
-        "as strongly as possible", "all out", "intensely", "intense", "huge", "ecstatic", "urgent", "urgently",
-        "immediately", "overjoyed", "maximum", "fast and wide", "vigorously", "enormous", "exuberant",
-        "biggest", "tightest", "hardest", "as hard as", "as far as possible", "as you can", "possible",
-        "like crazy", "completely", "totally", "absolutely", "right now", "right away", "frantic", "frantically",
-        "explosive", "over the top", "ever"],
+    0: [
+        "slightly",
+        "slight",
+        "subtly",
+        "subtle",
+        "barely",
+        "a little",
+        "a bit",
+        "a tiny bit",
+        "gently",
+        "softly",
+        "quietly",
+        "small",
+        "faint",
+        "faintly",
+        "tiny",
+        "minimal",
+        "hint",
+        "lightly",
+        "light",
+        "discreet",
+        "discreetly",
+        "politely",
+        "cautious",
+        "cautiously",
+        "modest",
+        "mostly",
+        "just a bit",
+        "understated",
+        "low-key",
+        "restrained",
+        "delicately",
+        "tentatively",
+        "briefly",
+    ],
+    1: [
+        "calmly",
+        "moderately",
+        "normally",
+        "comfortable",
+        "relaxed",
+        "steady",
+        "somewhat",
+        "moderate",
+        "friendly",
+        "simple",
+        "simply",
+        "casually",
+        "some",
+        "regular",
+        "ordinary",
+        "easy",
+    ],
+    2: [
+        "clearly",
+        "clear",
+        "noticeably",
+        "noticeable",
+        "expressive",
+        "big",
+        "lively",
+        "strongly",
+        "strong",
+        "warmly",
+        "very",
+        "really",
+        "obvious",
+        "obviously",
+        "pronounced",
+        "definitely",
+        "firm",
+        "firmly",
+        "eagerly",
+        "closely",
+        "deliberate",
+        "deliberately",
+        "heartfelt",
+        "tenderly",
+        "fully",
+        "plenty",
+        "visibly",
+        "energetic",
+        "happily",
+        "large",
+    ],
+    3: [
+        "wildly",
+        "wild",
+        "emphatically",
+        "emphatic",
+        "enthusiastically",
+        "extremely",
+        "full energy",
+        "as strongly as possible",
+        "all out",
+        "intensely",
+        "intense",
+        "huge",
+        "ecstatic",
+        "urgent",
+        "urgently",
+        "immediately",
+        "overjoyed",
+        "maximum",
+        "fast and wide",
+        "vigorously",
+        "enormous",
+        "exuberant",
+        "biggest",
+        "tightest",
+        "hardest",
+        "as hard as",
+        "as far as possible",
+        "as you can",
+        "possible",
+        "like crazy",
+        "completely",
+        "totally",
+        "absolutely",
+        "right now",
+        "right away",
+        "frantic",
+        "frantically",
+        "explosive",
+        "over the top",
+        "ever",
+    ],
 }
 _NEGATION = re.compile(r"\b(?:not|no|nothing|never|without|don't|dont|avoid)\b(?:\W+\w+){0,2}\W+$", re.IGNORECASE)
-_DEGREE_RE = [(level, w, re.compile(r"\b" + re.escape(w) + r"\b", re.IGNORECASE))
-              for level, words in DEGREE.items() for w in words]
+_DEGREE_RE = [
+    (level, w, re.compile(r"\b" + re.escape(w) + r"\b", re.IGNORECASE))
+    for level, words in DEGREE.items()
+    for w in words
+]
 
 
 def embed(texts) -> np.ndarray:
@@ -186,8 +392,11 @@ def degree_estimate(text: str) -> float | None:
                 votes.append(0.0)
                 continue
             prev = re.findall(r"[A-Za-z']+", before[-20:])
-            if word in _INTENSIFIERS and re.match(r"\W+(\w+)", text[hit.end():]) and any(
-                    p.match(text, hit.end() + 1) for _, w, p in _DEGREE_RE if w not in _INTENSIFIERS):
+            if (
+                word in _INTENSIFIERS
+                and re.match(r"\W+(\w+)", text[hit.end() :])
+                and any(p.match(text, hit.end() + 1) for _, w, p in _DEGREE_RE if w not in _INTENSIFIERS)
+            ):
                 continue  # "very" only strengthens the degree word after it
             if prev and prev[-1].lower() in _INTENSIFIERS:
                 level = 0.0 if level <= 1 else 3.0
@@ -234,8 +443,12 @@ def cue_features(r: np.ndarray, text: str) -> np.ndarray:
     (degree estimate / 3, whether there was one, exclamation marks / 3, shouting)."""
     cue = degree_estimate(text)
     shouted = [w for w in re.findall(r"\b[A-Z]{2,}\b", text) if w not in {"OK", "TV", "AI", "ID"}]
-    degree = [1.0 / 3 if cue is None else cue / 3, float(cue is not None), min(text.count("!"), 3) / 3,
-              float(len(shouted) >= 2)]
+    degree = [
+        1.0 / 3 if cue is None else cue / 3,
+        float(cue is not None),
+        min(text.count("!"), 3) / 3,
+        float(len(shouted) >= 2),
+    ]
     return np.concatenate([intent_scores(r, text), degree]).astype(np.float32)
 
 
@@ -275,9 +488,15 @@ def ground_embedded(text: str) -> Grounding:
         reasons.append(f"reads as no behaviour at all (p = {p_intent[0, semantic_head.NONE]:.2f})")
     if conf < head.threshold and not reasons:
         reasons.append(f"confidence {conf:.2f} is below the calibrated threshold {head.threshold:.2f}")
-    return Grounding(intent=INTENTS[m], intensity=INTENSITIES[z], confidence=round(conf, 4), backend="embedded",
-                     confident=not reasons, reason="; ".join(reasons),
-                     scores=tuple(round(float(p), 4) for p in p_intent[0, :len(INTENTS)]))
+    return Grounding(
+        intent=INTENTS[m],
+        intensity=INTENSITIES[z],
+        confidence=round(conf, 4),
+        backend="embedded",
+        confident=not reasons,
+        reason="; ".join(reasons),
+        scores=tuple(round(float(p), 4) for p in p_intent[0, : len(INTENTS)]),
+    )
 
 
 def ground_cues(text: str) -> Grounding:
@@ -316,9 +535,15 @@ def ground_cues(text: str) -> Grounding:
     confident = confidence >= CONFIDENCE_THRESHOLD and not reasons
     if not confident and not reasons:
         reasons.append("ambiguous between intents")
-    return Grounding(intent=INTENTS[int(m)], intensity=INTENSITIES[int(z)], confidence=round(confidence, 4),
-                     backend="cues", confident=confident, reason="; ".join(reasons),
-                     scores=tuple(round(float(s), 4) for s in intent_sim))
+    return Grounding(
+        intent=INTENTS[int(m)],
+        intensity=INTENSITIES[int(z)],
+        confidence=round(confidence, 4),
+        backend="cues",
+        confident=confident,
+        reason="; ".join(reasons),
+        scores=tuple(round(float(s), 4) for s in intent_sim),
+    )
 
 
 def _softmax(x):

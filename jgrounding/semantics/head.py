@@ -13,6 +13,7 @@ Features (``FEATURES`` wide) are the frozen sentence embedding (384), the Eq. (3
 cue-list reducer (16) and its degree cues (4). Parameters are a small pytree shipped in
 ``assets/semantic_head.npz`` (``python -m tools.train_semantics`` regenerates it, deterministically).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -27,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
+from jgrounding.vocabulary import NUM_INTENTS
 
 ASSET = Path(__file__).resolve().parents[2] / "assets" / "semantic_head.npz"
 NUM_CLASSES = NUM_INTENTS + 1  # the 16 intents and "none" (last)
@@ -38,13 +39,13 @@ NUM_DEGREE = 4
 
 @dataclasses.dataclass(frozen=True)
 class HeadConfig:
-    hidden: int = 128          # width of the intent MLP's hidden layer (0: linear)
-    z_hidden: int = 0          # width of the intensity scorer's hidden layer (0: linear score)
-    use_eq3: bool = True       # append the cue-list reducer's Eq. (3) scores and degree cues to the embedding
-    l2: float = 1e-4           # weight decay
+    hidden: int = 128  # width of the intent MLP's hidden layer (0: linear)
+    z_hidden: int = 0  # width of the intensity scorer's hidden layer (0: linear score)
+    use_eq3: bool = True  # append the cue-list reducer's Eq. (3) scores and degree cues to the embedding
+    l2: float = 1e-4  # weight decay
     learning_rate: float = 3e-3
-    steps: int = 400           # full-batch Adam steps
-    dropout: float = 0.1       # on the input features, intent branch
+    steps: int = 400  # full-batch Adam steps
+    dropout: float = 0.1  # on the input features, intent branch
     seed: int = 0
 
     @property
@@ -57,13 +58,21 @@ def init(key, cfg: HeadConfig) -> dict:
     k_hidden, k_out, k_z, k_zh = jax.random.split(key, 4)
     f, h, zh = cfg.num_features, cfg.hidden, cfg.z_hidden
     glorot = jax.nn.initializers.glorot_normal()
-    params = {"z_w": glorot(k_z, (zh or f, 1)), "z_b": jnp.zeros(()), "z_theta0": jnp.array(-1.5),
-              "z_gaps": jnp.array([1.0, 1.0])}
+    params = {
+        "z_w": glorot(k_z, (zh or f, 1)),
+        "z_b": jnp.zeros(()),
+        "z_theta0": jnp.array(-1.5),
+        "z_gaps": jnp.array([1.0, 1.0]),
+    }
     if zh:
         params |= {"z_w1": glorot(k_zh, (f, zh)), "z_b1": jnp.zeros(zh)}
     if h:
-        params |= {"w1": glorot(k_hidden, (f, h)), "b1": jnp.zeros(h), "w2": glorot(k_out, (h, NUM_CLASSES)),
-                   "b2": jnp.zeros(NUM_CLASSES)}
+        params |= {
+            "w1": glorot(k_hidden, (f, h)),
+            "b1": jnp.zeros(h),
+            "w2": glorot(k_out, (h, NUM_CLASSES)),
+            "b2": jnp.zeros(NUM_CLASSES),
+        }
     else:
         params |= {"w2": glorot(k_out, (f, NUM_CLASSES)), "b2": jnp.zeros(NUM_CLASSES)}
     return params
@@ -147,8 +156,13 @@ def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
     """ECE: sum over equal-width confidence bins of |accuracy - mean confidence| weighted by the bin's share."""
     confidence, correct = np.asarray(confidence, float), np.asarray(correct, float)
     idx = np.minimum((confidence * bins).astype(int), bins - 1)
-    return float(sum(abs(correct[idx == b].mean() - confidence[idx == b].mean()) * np.mean(idx == b)
-                     for b in range(bins) if np.any(idx == b)))
+    return float(
+        sum(
+            abs(correct[idx == b].mean() - confidence[idx == b].mean()) * np.mean(idx == b)
+            for b in range(bins)
+            if np.any(idx == b)
+        )
+    )
 
 
 def fit_temperature(logits_fn, intent, grid=np.exp(np.linspace(np.log(0.3), np.log(5.0), 60))) -> float:

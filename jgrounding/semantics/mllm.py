@@ -32,9 +32,11 @@ log = logging.getLogger(__name__)
 
 SCHEMA = {
     "type": "object",
-    "properties": {"intent": {"type": "string", "enum": list(INTENTS)},
-                   "intensity": {"type": "string", "enum": list(INTENSITIES)},
-                   "confidence": {"type": "number", "minimum": 0, "maximum": 1}},
+    "properties": {
+        "intent": {"type": "string", "enum": list(INTENTS)},
+        "intensity": {"type": "string", "enum": list(INTENSITIES)},
+        "confidence": {"type": "number", "minimum": 0, "maximum": 1},
+    },
     "required": ["intent", "intensity"],
 }
 FEW_SHOT = (
@@ -55,9 +57,11 @@ class Config:
 
     @staticmethod
     def from_env(**overrides) -> "Config":
-        env = {"url": os.environ.get("JGROUNDING_MLLM_URL", ""),
-               "model": os.environ.get("JGROUNDING_MLLM_MODEL", "qwen3-vl"),
-               "api_key": os.environ.get("JGROUNDING_MLLM_API_KEY", "")}
+        env = {
+            "url": os.environ.get("JGROUNDING_MLLM_URL", ""),
+            "model": os.environ.get("JGROUNDING_MLLM_MODEL", "qwen3-vl"),
+            "api_key": os.environ.get("JGROUNDING_MLLM_API_KEY", ""),
+        }
         env.update({k: v for k, v in overrides.items() if v is not None})
         return Config(**env)
 
@@ -98,9 +102,15 @@ def _post(cfg: Config, messages: list[dict]) -> str:
     if not cfg.url:
         raise ConnectionError("no MLLM endpoint configured (set JGROUNDING_MLLM_URL or pass url=...)")
     body = json.dumps({"model": cfg.model, "messages": messages, "temperature": 0.0}).encode()
-    req = urllib.request.Request(cfg.url.rstrip("/") + "/chat/completions", data=body, method="POST",
-                                 headers={"Content-Type": "application/json",
-                                          **({"Authorization": f"Bearer {cfg.api_key}"} if cfg.api_key else {})})
+    req = urllib.request.Request(
+        cfg.url.rstrip("/") + "/chat/completions",
+        data=body,
+        method="POST",
+        headers={
+            "Content-Type": "application/json",
+            **({"Authorization": f"Bearer {cfg.api_key}"} if cfg.api_key else {}),
+        },
+    )
     with urllib.request.urlopen(req, timeout=cfg.timeout_s) as resp:
         doc = json.loads(resp.read().decode())
     try:
@@ -131,8 +141,16 @@ def parse_reply(text: str) -> tuple[str, str, float]:
     return intent, intensity, conf
 
 
-def ground_mllm(text: str, *, url: str | None = None, model: str | None = None, api_key: str | None = None,
-                retries: int | None = None, timeout_s: float | None = None, fallback=None):
+def ground_mllm(
+    text: str,
+    *,
+    url: str | None = None,
+    model: str | None = None,
+    api_key: str | None = None,
+    retries: int | None = None,
+    timeout_s: float | None = None,
+    fallback=None,
+):
     """Eq. (4) through an MLLM; falls back to the embedded reducer (reason logged and returned).
 
     ``fallback``: an embedded Grounding already computed for ``text`` (an escalation of low confidence);
@@ -142,42 +160,65 @@ def ground_mllm(text: str, *, url: str | None = None, model: str | None = None, 
     from jgrounding.semantics.types import Grounding
 
     cfg = Config.from_env(url=url, model=model, api_key=api_key, retries=retries, timeout_s=timeout_s)
-    messages = [{"role": "system", "content": grounding_specification()},
-                {"role": "user", "content": f'Response: "{text}"\nAnswer:'}]
+    messages = [
+        {"role": "system", "content": grounding_specification()},
+        {"role": "user", "content": f'Response: "{text}"\nAnswer:'},
+    ]
     problems = []
     for attempt in range(cfg.retries + 1):
         try:
             intent, intensity, conf = parse_reply(_post(cfg, messages))
             if fallback is not None:
-                return Grounding(intent, intensity, conf, "mllm (escalated)", True,
-                                 reason=f"escalated: embedded confidence {fallback.confidence:.2f} ({fallback.reason})")
+                return Grounding(
+                    intent,
+                    intensity,
+                    conf,
+                    "mllm (escalated)",
+                    True,
+                    reason=f"escalated: embedded confidence {fallback.confidence:.2f} ({fallback.reason})",
+                )
             return Grounding(intent, intensity, conf, "mllm", True)
         except ValueError as e:  # a reply that breaks the schema: ask again, saying what was wrong
             problems.append(str(e))
-            messages = messages[:2] + [{"role": "user", "content": f"Your last answer was invalid ({e}). "
-                                        "Reply with JSON matching the schema only."}]
+            messages = messages[:2] + [
+                {
+                    "role": "user",
+                    "content": f"Your last answer was invalid ({e}). Reply with JSON matching the schema only.",
+                }
+            ]
         except (OSError, ConnectionError, KeyError, json.JSONDecodeError) as e:  # server down or odd payload
             problems.append(f"{type(e).__name__}: {e}")
             break
     reason = "MLLM fallback to embedded: " + "; ".join(problems)
     log.warning(reason)
     g = fallback if fallback is not None else ground_embedded(text)
-    return dataclasses.replace(g, backend="embedded (mllm fallback)", reason="; ".join(filter(None, [reason, g.reason])))
+    return dataclasses.replace(
+        g, backend="embedded (mllm fallback)", reason="; ".join(filter(None, [reason, g.reason]))
+    )
 
 
 def reason(observation: Observation, history: list[tuple[str, str]] = (), **cfg_overrides) -> str:
     """Eq. (2): r_t = f_MLLM(o_t, H_{t-1}) -> a short response plan in natural language."""
     cfg = Config.from_env(**cfg_overrides)
     past = ", ".join(f"{m}/{z}" for m, z in history[-5:]) or "none"
-    text = (f"Scene: {observation.visual or 'n/a'}\nUser said: {observation.transcript or 'n/a'}\n"
-            f"Touch on the trunk: {', '.join(observation.tactile) or 'none'}\nRecent trunk responses: {past}\n"
-            "Describe in one or two sentences how the robot should respond socially.")
+    text = (
+        f"Scene: {observation.visual or 'n/a'}\nUser said: {observation.transcript or 'n/a'}\n"
+        f"Touch on the trunk: {', '.join(observation.tactile) or 'none'}\nRecent trunk responses: {past}\n"
+        "Describe in one or two sentences how the robot should respond socially."
+    )
     content: list | str = text
     if observation.image:
         data = base64.b64encode(Path(observation.image).read_bytes()).decode()
-        content = [{"type": "text", "text": text},
-                   {"type": "image_url", "image_url": {"url": f"data:image/png;base64,{data}"}}]
-    messages = [{"role": "system", "content": "You are the social reasoning module of a companion robot "
-                 "with an elephant-like trunk. Answer with the planned response only."},
-                {"role": "user", "content": content}]
+        content = [
+            {"type": "text", "text": text},
+            {"type": "image_url", "image_url": {"url": f"data:image/png;base64,{data}"}},
+        ]
+    messages = [
+        {
+            "role": "system",
+            "content": "You are the social reasoning module of a companion robot "
+            "with an elephant-like trunk. Answer with the planned response only.",
+        },
+        {"role": "user", "content": content},
+    ]
     return _post(cfg, messages).strip()

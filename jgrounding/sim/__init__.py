@@ -25,10 +25,27 @@ this function simulates what it is given; clamping belongs to :mod:`jgrounding.s
 from __future__ import annotations
 
 from jgrounding.sim.measures import (  # noqa: F401  (re-exported: the simulator's public surface)
-    BASE_POSITION, CONTROL_DT, MAX_CONTACT_FORCE, MAX_TIP_SPEED, MAX_TIP_SPEED_NEAR_USER, NEAR_USER_DISTANCE,
-    NUM_CHANNELS, NUM_POINTS, NUM_SEGMENTS, NUM_STEPS, SUBSTEPS, TIMESTEP,
-    USER_POSITION, Rollout, feasibility_margin, feasible, features, finish_rollout, segment_distance,
-    turning_angle, user_distance,
+    BASE_POSITION,
+    CONTROL_DT,
+    MAX_CONTACT_FORCE,
+    MAX_TIP_SPEED,
+    MAX_TIP_SPEED_NEAR_USER,
+    NEAR_USER_DISTANCE,
+    NUM_CHANNELS,
+    NUM_POINTS,
+    NUM_SEGMENTS,
+    NUM_STEPS,
+    SUBSTEPS,
+    TIMESTEP,
+    USER_POSITION,
+    Rollout,
+    feasibility_margin,
+    feasible,
+    features,
+    finish_rollout,
+    segment_distance,
+    turning_angle,
+    user_distance,
 )
 from jgrounding.sim.native import load_model, rollout_native, validate_actuation  # noqa: F401
 

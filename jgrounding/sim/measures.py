@@ -59,10 +59,20 @@ def finish_rollout(backbone, tendon, touch) -> Rollout:
     tip = backbone[:, :, -1]
     start = np.broadcast_to(BASE_POSITION - np.array([0, 0, tm.TRUNK_LENGTH]), tip[:, :1].shape)
     tip_speed = np.linalg.norm(np.diff(np.concatenate([start, tip], 1), axis=1), axis=-1) / CONTROL_DT
-    stable = (np.all(np.isfinite(backbone), axis=(1, 2, 3)) & (np.abs(backbone).max(axis=(1, 2, 3)) < 3.0)
-              & (np.nan_to_num(tip_speed, nan=np.inf).max(axis=1) < MAX_TIP_SPEED))
-    return Rollout(backbone=backbone, tip=tip, tip_speed=tip_speed, tendon_length=tendon,
-                   user_distance=user_distance(backbone), contact_force=touch, stable=stable)
+    stable = (
+        np.all(np.isfinite(backbone), axis=(1, 2, 3))
+        & (np.abs(backbone).max(axis=(1, 2, 3)) < 3.0)
+        & (np.nan_to_num(tip_speed, nan=np.inf).max(axis=1) < MAX_TIP_SPEED)
+    )
+    return Rollout(
+        backbone=backbone,
+        tip=tip,
+        tip_speed=tip_speed,
+        tendon_length=tendon,
+        user_distance=user_distance(backbone),
+        contact_force=touch,
+        stable=stable,
+    )
 
 
 def turning_angle(backbone: np.ndarray) -> np.ndarray:

@@ -22,9 +22,10 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import mujoco
+import numpy as np
 from mujoco import mjx
+
 # MJX 3.3.7 has no public contact-force function; this one private helper is isolated in _user_force.
 from mujoco.mjx._src import support as mjx_support  # contact_force_dim: pyramid -> normal force
 
@@ -90,10 +91,11 @@ def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -
     else:
         outs = []
         for i in range(0, u.shape[0], chunk):
-            part = u[i:i + chunk]
+            part = u[i : i + chunk]
             pad = chunk - part.shape[0]
             res = jax.device_get(fn(jnp.pad(part, ((0, pad), (0, 0), (0, 0)))))
             outs.append(tuple(x[: chunk - pad] for x in res))
     points, tendon, touch = (np.concatenate(x) for x in zip(*outs))
-    return measures.finish_rollout(np.asarray(points, np.float64), np.asarray(tendon, np.float64),
-                         np.asarray(touch, np.float64))
+    return measures.finish_rollout(
+        np.asarray(points, np.float64), np.asarray(tendon, np.float64), np.asarray(touch, np.float64)
+    )

@@ -42,8 +42,10 @@ def validate_actuation(u) -> np.ndarray:
     if not np.all(np.isfinite(u)):
         raise ValueError("actuation contains NaN or Inf")
     if u.min() < -1e-6 or u.max() > 1 + 1e-6:
-        raise ValueError(f"actuation must lie in [0, 1] (got range [{u.min():.3g}, {u.max():.3g}]); "
-                         "pass it through jgrounding.safety.emit first")
+        raise ValueError(
+            f"actuation must lie in [0, 1] (got range [{u.min():.3g}, {u.max():.3g}]); "
+            "pass it through jgrounding.safety.emit first"
+        )
     return np.clip(u, 0.0, 1.0)
 
 
@@ -66,10 +68,7 @@ def rollout_native(u: np.ndarray, contact: bool) -> Rollout:
     model, data, state0 = _native_workers(contact)
     batch, steps = u.shape[:2]
     control = np.repeat(u, SUBSTEPS, axis=1)  # control held over the physics substeps
-    _, sensordata = mj_rollout.rollout(model, data if batch > 1 else data[0], np.tile(state0, (batch, 1)),
-                                       control)
-    sensordata = sensordata[:, SUBSTEPS - 1::SUBSTEPS]  # end of each control step
+    _, sensordata = mj_rollout.rollout(model, data if batch > 1 else data[0], np.tile(state0, (batch, 1)), control)
+    sensordata = sensordata[:, SUBSTEPS - 1 :: SUBSTEPS]  # end of each control step
     backbone = sensordata[..., : 3 * NUM_POINTS].reshape(batch, steps, NUM_POINTS, 3)
     return finish_rollout(backbone, sensordata[..., _SENSOR_TENDON], sensordata[..., _SENSOR_TOUCH])
-
-

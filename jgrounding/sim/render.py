@@ -65,8 +65,14 @@ def _label(frame: np.ndarray, text: str, size: int = 16) -> np.ndarray:
     from PIL import Image, ImageDraw, ImageFont
 
     img = Image.fromarray(frame)
-    ImageDraw.Draw(img).multiline_text((8, 6), text, fill=(245, 245, 245), font=ImageFont.load_default(size=size),
-                                       stroke_width=1, stroke_fill=(20, 20, 20))
+    ImageDraw.Draw(img).multiline_text(
+        (8, 6),
+        text,
+        fill=(245, 245, 245),
+        font=ImageFont.load_default(size=size),
+        stroke_width=1,
+        stroke_fill=(20, 20, 20),
+    )
     return np.asarray(img)
 
 
@@ -89,8 +95,7 @@ def _fade_user(model, renderer) -> None:
             g.rgba[3] = USER_ALPHA
 
 
-def _frames_mujoco(u: np.ndarray, steps: list[int], views: tuple[float, ...],
-                   ghost: bool) -> list[list[np.ndarray]]:
+def _frames_mujoco(u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool) -> list[list[np.ndarray]]:
     model = sim.load_model()
     data, rest = mujoco.MjData(model), mujoco.MjData(model)
     mujoco.mj_forward(model, rest)
@@ -123,8 +128,14 @@ def plot_backbone(ax, backbone, *, color="tab:gray", alpha: float = 1.0, user: b
         z = np.linspace(*tm.USER_TORSO_Z, 12)
         th = np.linspace(0, 2 * np.pi, 24)
         zz, tt = np.meshgrid(z, th)
-        ax.plot_surface(tm.USER_TORSO_X + tm.USER_TORSO_RADIUS * np.cos(tt), tm.USER_TORSO_RADIUS * np.sin(tt), zz,
-                        color="peachpuff", alpha=0.25, linewidth=0)
+        ax.plot_surface(
+            tm.USER_TORSO_X + tm.USER_TORSO_RADIUS * np.cos(tt),
+            tm.USER_TORSO_RADIUS * np.sin(tt),
+            zz,
+            color="peachpuff",
+            alpha=0.25,
+            linewidth=0,
+        )
     ax.set_xlim(-0.45, 0.6)
     ax.set_ylim(-0.5, 0.5)
     ax.set_zlim(0.25, 1.3)
@@ -135,8 +146,9 @@ def plot_backbone(ax, backbone, *, color="tab:gray", alpha: float = 1.0, user: b
     return ax
 
 
-def _frames_matplotlib(u: np.ndarray, steps: list[int], views: tuple[float, ...],
-                       ghost: bool) -> list[list[np.ndarray]]:
+def _frames_matplotlib(
+    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool
+) -> list[list[np.ndarray]]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -163,8 +175,9 @@ def _frames_matplotlib(u: np.ndarray, steps: list[int], views: tuple[float, ...]
     return frames
 
 
-def frames(u, steps: list[int], azimuth=SIDE_VIEW, backend: str = "auto", *, labels: bool = False,
-           ghost: bool = False) -> tuple[list[np.ndarray], str]:
+def frames(
+    u, steps: list[int], azimuth=SIDE_VIEW, backend: str = "auto", *, labels: bool = False, ghost: bool = False
+) -> tuple[list[np.ndarray], str]:
     """RGB frames of the motion of actuation ``(T, 4)`` at the given control steps, and the backend used.
 
     ``azimuth``: one camera azimuth in degrees (:data:`SIDE_VIEW`, :data:`REAR_VIEW`, any angle) ->
@@ -251,7 +264,7 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
     for v, a in enumerate(views):
         tiles = []
         for c, (img, t) in enumerate(zip(imgs, steps)):
-            tile = np.asarray(Image.fromarray(img[:, v * WIDTH:(v + 1) * WIDTH]).resize((w, h), Image.LANCZOS))
+            tile = np.asarray(Image.fromarray(img[:, v * WIDTH : (v + 1) * WIDTH]).resize((w, h), Image.LANCZOS))
             text = f"t = {t * sim.CONTROL_DT:.1f} s" + (f"\n{VIEW_NAMES.get(a, f'azimuth {a:g}')}" if c == 0 else "")
             tiles.append(np.pad(_label(tile, text, size=13), ((0, 2), (0, 2), (0, 0)), constant_values=255))
         rows.append(np.concatenate(tiles, axis=1))

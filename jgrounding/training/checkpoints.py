@@ -48,8 +48,14 @@ def save(directory: str | Path, tree, meta: dict) -> Path:
     # key_data) restores exactly into the caller's target structure.
     leaves = [np.asarray(x) for x in jax.tree_util.tree_leaves(jax.device_get(tree))]
     ocp.PyTreeCheckpointer().save(tmp / "params", {f"{i:05d}": x for i, x in enumerate(leaves)})
-    full = {"format_version": FORMAT_VERSION, "intents": list(INTENTS), "intensities": list(INTENSITIES),
-            "package_version": _version(), **meta, "params_sha256": _digest(leaves)}
+    full = {
+        "format_version": FORMAT_VERSION,
+        "intents": list(INTENTS),
+        "intensities": list(INTENSITIES),
+        "package_version": _version(),
+        **meta,
+        "params_sha256": _digest(leaves),
+    }
     (tmp / "meta.json").write_text(json.dumps(full, indent=1, sort_keys=True, default=str))
     old = directory.with_name(f"{directory.name}.old-{os.getpid()}")
     if directory.exists():
@@ -118,12 +124,16 @@ def restore(directory: str | Path, target, expect: dict | None = None):
         raise FileNotFoundError(f"no checkpoint at {directory} (expected {directory / 'params'})")
     meta = read_meta(directory)
     if meta.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"checkpoint {directory} has format_version {meta.get('format_version')}, expected {FORMAT_VERSION}")
+        raise ValueError(
+            f"checkpoint {directory} has format_version {meta.get('format_version')}, expected {FORMAT_VERSION}"
+        )
     intents, intensities = tuple(meta.get("intents", ())), tuple(meta.get("intensities", ()))
     if intents != INTENTS or intensities != INTENSITIES:
-        raise ValueError(f"checkpoint {directory} was trained for another vocabulary ({len(intents)} intents, "
-                         f"{len(intensities)} intensities; this package has {len(INTENTS)} intents "
-                         f"{', '.join(INTENTS)} and {len(INTENSITIES)} intensities {', '.join(INTENSITIES)})")
+        raise ValueError(
+            f"checkpoint {directory} was trained for another vocabulary ({len(intents)} intents, "
+            f"{len(intensities)} intensities; this package has {len(INTENTS)} intents "
+            f"{', '.join(INTENTS)} and {len(INTENSITIES)} intensities {', '.join(INTENSITIES)})"
+        )
     for key, value in (expect or {}).items():
         if meta.get(key) != value:
             raise ValueError(f"checkpoint {directory}: {key} is {meta.get(key)!r}, expected {value!r}")
@@ -134,18 +144,24 @@ def restore(directory: str | Path, target, expect: dict | None = None):
     flat_t, treedef = jax.tree_util.tree_flatten(target)
     flat = [np.asarray(stored[k]) for k in sorted(stored)]
     if "params_sha256" in meta and _digest(flat) != meta["params_sha256"]:
-        raise ValueError(f"checkpoint {directory} is corrupt: its arrays do not match params_sha256 in "
-                         f"{directory / 'meta.json'}; refusing to load it")
+        raise ValueError(
+            f"checkpoint {directory} is corrupt: its arrays do not match params_sha256 in "
+            f"{directory / 'meta.json'}; refusing to load it"
+        )
     if len(flat) != len(flat_t):
         raise ValueError(f"checkpoint {directory} holds {len(flat)} arrays, expected {len(flat_t)}")
     # a target leaf is an array or a jax.ShapeDtypeStruct (methods.abstract)
     flat_t = [b if hasattr(b, "shape") and hasattr(b, "dtype") else np.asarray(b) for b in flat_t]
     for a, b in zip(flat, flat_t):
         if np.shape(a) != tuple(b.shape):
-            raise ValueError(f"checkpoint {directory} has an array of shape {np.shape(a)} where "
-                             f"{tuple(b.shape)} is expected")
+            raise ValueError(
+                f"checkpoint {directory} has an array of shape {np.shape(a)} where {tuple(b.shape)} is expected"
+            )
     tree = jax.tree_util.tree_unflatten(treedef, [np.asarray(a, dtype=b.dtype) for a, b in zip(flat, flat_t)])
-    if not all(np.all(np.isfinite(np.asarray(x))) for x in jax.tree_util.tree_leaves(tree)
-               if np.issubdtype(np.asarray(x).dtype, np.floating)):
+    if not all(
+        np.all(np.isfinite(np.asarray(x)))
+        for x in jax.tree_util.tree_leaves(tree)
+        if np.issubdtype(np.asarray(x).dtype, np.floating)
+    ):
         raise ValueError(f"checkpoint {directory} contains NaN or Inf parameters; refusing to load it")
     return tree, meta

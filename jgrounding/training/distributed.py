@@ -50,8 +50,12 @@ def _launcher() -> str | None:
     return None
 
 
-def initialize(coordinator_address: str | None = None, num_processes: int | None = None,
-               process_id: int | None = None, local_device_ids=None) -> bool:
+def initialize(
+    coordinator_address: str | None = None,
+    num_processes: int | None = None,
+    process_id: int | None = None,
+    local_device_ids=None,
+) -> bool:
     """Join a multi-host job through ``jax.distributed.initialize``; a no-op on a single host.
 
     Arguments override the environment variables ``JAX_COORDINATOR_ADDRESS`` (``host:port`` of
@@ -71,8 +75,10 @@ def initialize(coordinator_address: str | None = None, num_processes: int | None
         return False
     if launcher is None and None in (address, count, pid):
         missing = [n for n, v in zip(ENV, (address, count, pid)) if v is None]
-        raise ValueError(f"a multi-host job needs {', '.join(ENV)} (or the matching arguments of "
-                         f"initialize(), or a SLURM / Open MPI launch); missing: {', '.join(missing)}")
+        raise ValueError(
+            f"a multi-host job needs {', '.join(ENV)} (or the matching arguments of "
+            f"initialize(), or a SLURM / Open MPI launch); missing: {', '.join(missing)}"
+        )
     if count is not None and (count < 1 or pid is None or not 0 <= pid < count):
         raise ValueError(f"JAX_PROCESS_ID must be in 0..JAX_NUM_PROCESSES-1, got process {pid} of {count}")
     jax.distributed.initialize(address, count, pid, local_device_ids)
@@ -111,8 +117,9 @@ def shard(tree, mesh: Mesh):
     """Put every leaf of ``tree`` on ``mesh`` split along its leading axis (a multiple of the mesh size)."""
     for x in jax.tree_util.tree_leaves(tree):
         if np.ndim(x) == 0 or np.shape(x)[0] % mesh.size:
-            raise ValueError(f"a sharded leading axis must be a multiple of the {mesh.size} devices, "
-                             f"got shape {np.shape(x)}")
+            raise ValueError(
+                f"a sharded leading axis must be a multiple of the {mesh.size} devices, got shape {np.shape(x)}"
+            )
     s = sharding(mesh, AXIS)
     return jax.tree.map(lambda x: _put(x, s), tree)
 

@@ -80,8 +80,16 @@ def make_chunk(step, length: int, mesh=None):
     return jax.jit(jax.vmap(run), in_shardings=(seeds,), out_shardings=(seeds, seeds))
 
 
-def train(states: TrainState, step, config: TrainConfig, *, desc: str = "train", progress: bool = True,
-          on_chunk: Callable | None = None, mesh=None) -> tuple[TrainState, jax.Array]:
+def train(
+    states: TrainState,
+    step,
+    config: TrainConfig,
+    *,
+    desc: str = "train",
+    progress: bool = True,
+    on_chunk: Callable | None = None,
+    mesh=None,
+) -> tuple[TrainState, jax.Array]:
     """Run ``config.steps`` updates (minus those already done) of vmapped ``states`` in compiled chunks.
 
     ``mesh`` (:func:`jgrounding.training.distributed.make_mesh`): the seeds are split over its devices, padded

@@ -26,13 +26,9 @@ import numpy as np
 from flax import nnx
 
 from jgrounding import training
-from jgrounding.evaluation import physics as phys_eval
-
-from jgrounding.generators import flows
-
-from jgrounding.generators import methods
-
 from jgrounding.actuation import splines
+from jgrounding.evaluation import physics as phys_eval
+from jgrounding.generators import flows, methods
 from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
 
 METHOD = "tuple_spline_rf"
@@ -75,8 +71,11 @@ def refill(keep: np.ndarray, controls: np.ndarray, lib_controls: dict, rng: np.r
         if len(bad) == 0:
             continue
         kept = np.flatnonzero(keep[j])
-        out[j, bad] = controls[j, rng.choice(kept, len(bad))] if len(kept) else \
-            lib_controls[j][rng.integers(0, len(lib_controls[j]), len(bad))]
+        out[j, bad] = (
+            controls[j, rng.choice(kept, len(bad))]
+            if len(kept)
+            else lib_controls[j][rng.integers(0, len(lib_controls[j]), len(bad))]
+        )
     return out
 
 
@@ -92,8 +91,15 @@ def _make_finetune(graphdef, cond, intensity, config: training.TrainConfig):
     return jax.jit(jax.vmap(run))
 
 
-def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: PhysicsConfig = PhysicsConfig(),
-             config: training.TrainConfig = training.TrainConfig()):
+def finetune(
+    teacher: methods.Trained,
+    library,
+    key,
+    *,
+    intent_emb,
+    physics: PhysicsConfig = PhysicsConfig(),
+    config: training.TrainConfig = training.TrainConfig(),
+):
     """Physics-aware fine-tuning of every seed of a trained ``tuple_spline_rf`` (all seeds at once).
 
     Args:
@@ -129,11 +135,22 @@ def finetune(teacher: methods.Trained, library, key, *, intent_emb, physics: Phy
         margin = phys_eval.margins(flat, engine=physics.engine).reshape(u.shape[:3])
         seconds = time.perf_counter() - t0
         keep = margin >= physics.margin
-        report.append({"round": rnd, "simulated": int(flat.shape[0]), "kept": float(keep.mean()),
-                       "feasible": float((margin >= 0).mean()), "seconds": seconds})
+        report.append(
+            {
+                "round": rnd,
+                "simulated": int(flat.shape[0]),
+                "kept": float(keep.mean()),
+                "feasible": float((margin >= 0).mean()),
+                "seconds": seconds,
+            }
+        )
         controls = np.asarray(splines.fit(flat, num_controls=teacher.num_controls)).reshape(*u.shape[:3], -1)
-        targets = np.stack([np.concatenate([refill(keep[i], controls[i], lib_by_tuple, rng).reshape(n_tuples * c, -1),
-                                            lib_target]) for i in range(len(teacher.seeds))])
+        targets = np.stack(
+            [
+                np.concatenate([refill(keep[i], controls[i], lib_by_tuple, rng).reshape(n_tuples * c, -1), lib_target])
+                for i in range(len(teacher.seeds))
+            ]
+        )
         keys = jax.random.split(k_train, len(teacher.seeds))
         states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
         states, _ = run(states, 2.0 * jnp.asarray(targets) - 1.0)  # controls in [-1, 1], as the methods train

@@ -1,9 +1,11 @@
 """Properties of the Catmull-Rom actuation space (Sec. III-B, SPEC §3)."""
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from jgrounding.actuation import splines
@@ -23,7 +25,7 @@ def test_interpolates_controls_at_knots(p, c):
     ctrl = c.draw(arrays(np.float32, (4, p), elements=finite))
     num_steps = 10 * (p - 1) + 1  # knots k/(P-1) fall exactly on grid points 10k
     u = splines.reconstruct(ctrl, num_steps=num_steps)
-    np.testing.assert_allclose(u[:: 10].T, ctrl, atol=1e-5)
+    np.testing.assert_allclose(u[::10].T, ctrl, atol=1e-5)
 
 
 @given(p=st.integers(3, 7), c=st.data())
@@ -49,8 +51,7 @@ def test_linear_trajectory_is_reproduced_exactly():
 def test_fit_error_falls_with_more_controls():
     tau = np.linspace(0, 1, 150)
     u = 0.5 + 0.3 * np.stack([np.sin(2 * np.pi * f * tau + f) for f in (1.0, 1.5, 0.7, 2.0)], -1)
-    errs = [float(jnp.sqrt(jnp.mean((splines.reconstruct(splines.fit(u, p)) - u) ** 2)))
-            for p in (3, 4, 6, 8, 12)]
+    errs = [float(jnp.sqrt(jnp.mean((splines.reconstruct(splines.fit(u, p)) - u) ** 2))) for p in (3, 4, 6, 8, 12)]
     assert all(a > b for a, b in zip(errs, errs[1:])), errs
     assert errs[-1] < 0.02
 
@@ -70,14 +71,17 @@ def test_gradients_are_finite():
     assert g.shape == (4, 4) and bool(jnp.all(jnp.isfinite(g)))
 
 
-@pytest.mark.parametrize("call, match", [
-    (lambda: splines.fit(np.zeros((150, 4)), num_controls=1), "num_controls"),
-    (lambda: splines.fit(np.zeros((3, 4)), num_controls=4), "num_steps"),
-    (lambda: splines.fit(np.zeros(150)), "shape"),
-    (lambda: splines.reconstruct(np.zeros(4)), "shape"),
-    (lambda: splines.fit(np.full((150, 4), np.nan)), "NaN"),
-    (lambda: splines.reconstruct(np.array([[0.0, np.inf]])), "NaN"),
-])
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda: splines.fit(np.zeros((150, 4)), num_controls=1), "num_controls"),
+        (lambda: splines.fit(np.zeros((3, 4)), num_controls=4), "num_steps"),
+        (lambda: splines.fit(np.zeros(150)), "shape"),
+        (lambda: splines.reconstruct(np.zeros(4)), "shape"),
+        (lambda: splines.fit(np.full((150, 4), np.nan)), "NaN"),
+        (lambda: splines.reconstruct(np.array([[0.0, np.inf]])), "NaN"),
+    ],
+)
 def test_bad_inputs_raise_clear_errors(call, match):
     with pytest.raises(ValueError, match=match):
         call()

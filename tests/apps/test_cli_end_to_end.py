@@ -1,4 +1,5 @@
 """End to end: the command line (subprocess) and the quick ablation."""
+
 import json
 import os
 import subprocess
@@ -9,7 +10,6 @@ import numpy as np
 import pytest
 
 from jgrounding import safety
-
 from jgrounding.apps import export
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -17,15 +17,24 @@ ENV = {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(ROOT)}
 
 
 def run(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, env=ENV, capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", *args], cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=timeout
+    )
 
 
 @pytest.mark.slow
 def test_cli_grounds_samples_and_writes_files(tmp_path):
     out = tmp_path / "out"
-    p = run("jgrounding", "User seems sad; respond calmly with a gentle touch", "--samples", "4",
-            "--out", str(out), "--seed", "1")
+    p = run(
+        "jgrounding",
+        "User seems sad; respond calmly with a gentle touch",
+        "--samples",
+        "4",
+        "--out",
+        str(out),
+        "--seed",
+        "1",
+    )
     assert p.returncode == 0, p.stderr
     assert "comforting" in p.stdout
     for name in ("tendons.png", "posture.png", "motion.gif", "commands.csv", "commands.json", "samples.npy"):
@@ -39,22 +48,36 @@ def test_cli_grounds_samples_and_writes_files(tmp_path):
 
 
 def test_cli_jsonl_mode_and_direct_tuple(tmp_path):
-    p = run("jgrounding", "--intent", "nodding", "--intensity", "subtle", "--samples", "2", "--no-render",
-            "--jsonl", "--out", str(tmp_path))
+    p = run(
+        "jgrounding",
+        "--intent",
+        "nodding",
+        "--intensity",
+        "subtle",
+        "--samples",
+        "2",
+        "--no-render",
+        "--jsonl",
+        "--out",
+        str(tmp_path),
+    )
     assert p.returncode == 0, p.stderr
     events = [json.loads(line) for line in p.stdout.splitlines()]
     assert events[0] == {"event": "tuple", "intent": "nodding", "intensity": "subtle"}
     assert any(e["event"] == "file" and e["kind"] == "csv" for e in events)
 
 
-@pytest.mark.parametrize("args, match", [
-    (["--intent", "dancing"], "invalid choice"),
-    (["hello", "--samples", "0"], "--samples"),
-    (["hello", "--backend", "gpt4"], "invalid choice"),
-    ([], "give a response text"),
-    (["--intensity", "subtle"], "--intensity needs --intent"),
-    (["hi", "--seed", "-3"], "--seed"),
-])
+@pytest.mark.parametrize(
+    "args, match",
+    [
+        (["--intent", "dancing"], "invalid choice"),
+        (["hello", "--samples", "0"], "--samples"),
+        (["hello", "--backend", "gpt4"], "invalid choice"),
+        ([], "give a response text"),
+        (["--intensity", "subtle"], "--intensity needs --intent"),
+        (["hi", "--seed", "-3"], "--seed"),
+    ],
+)
 def test_cli_usage_errors_exit_2_and_name_choices(args, match):
     p = run("jgrounding", *args, timeout=60)
     assert p.returncode == 2 and match in p.stderr, p.stderr
@@ -66,8 +89,14 @@ def test_quick_ablation_end_to_end(tmp_path):
     assert p.returncode == 0, p.stderr[-2000:]
     res = json.loads((tmp_path / "ablation.json").read_text())
     rows = res["rows"]
-    assert set(rows) == {"raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_cnn", "tuple_spline_ddpm",
-                         "tuple_spline_rf", "tuple_spline_rf_physics"}
+    assert set(rows) == {
+        "raw_dense_cnn",
+        "tuple_dense_cnn",
+        "tuple_spline_cnn",
+        "tuple_spline_ddpm",
+        "tuple_spline_rf",
+        "tuple_spline_rf_physics",
+    }
     for r in rows.values():
         assert 0.0 <= r["success"][0] <= 1.0 and 0.0 <= r["feasible"][0] <= 1.0 and r["time_ms"] > 0
         assert r["samples"] == 64 * 8 * 2  # every generated sample simulated (K_div x 64 x seeds)
@@ -83,8 +112,9 @@ def test_interactive_loop_keeps_history(tmp_path):
     from jgrounding.apps import interact
 
     out = io.StringIO()
-    interact.main(["--out", str(tmp_path)], stdin=io.StringIO("Wave hello to the user!\n\n:history\n:quit\n"),
-                  stdout=out)
+    interact.main(
+        ["--out", str(tmp_path)], stdin=io.StringIO("Wave hello to the user!\n\n:history\n:quit\n"), stdout=out
+    )
     text = out.getvalue()
     assert "-> (greeting," in text and "greeting/" in text.split(":history")[-1] + text
     assert (tmp_path / "turn001.png").stat().st_size > 1000
@@ -93,8 +123,22 @@ def test_interactive_loop_keeps_history(tmp_path):
 def test_cli_screen_and_current_flags(tmp_path):
     from jgrounding import sim
 
-    p = run("jgrounding", "--intent", "nodding", "--intensity", "emphatic", "--samples", "3", "--no-render",
-            "--screen", "--current", "0.4,0,0.2,0", "--jsonl", "--out", str(tmp_path))
+    p = run(
+        "jgrounding",
+        "--intent",
+        "nodding",
+        "--intensity",
+        "emphatic",
+        "--samples",
+        "3",
+        "--no-render",
+        "--screen",
+        "--current",
+        "0.4,0,0.2,0",
+        "--jsonl",
+        "--out",
+        str(tmp_path),
+    )
     assert p.returncode == 0, p.stderr
     screen = [json.loads(line) for line in p.stdout.splitlines() if '"screen"' in line][0]
     assert screen["candidates"] >= 3 and 0 <= screen["rejected"] <= screen["candidates"] - 3

@@ -9,7 +9,9 @@ from jgrounding.apps import export
 
 def test_command_stream_round_trip(tmp_path):
     u = 0.5 + 0.4 * np.sin(np.linspace(0, 3, 150))[:, None] * np.ones(4)
-    path = io.write_atomic(tmp_path / "c.csv", export.command_stream_csv(u, control_dt=1 / 30, meta={"intent": "nodding"}))
+    path = io.write_atomic(
+        tmp_path / "c.csv", export.command_stream_csv(u, control_dt=1 / 30, meta={"intent": "nodding"})
+    )
     header, back = export.read_command_stream_csv(path)
     np.testing.assert_allclose(back, u, atol=1e-6)
     assert header["control_rate_hz"] == pytest.approx(30.0) and header["intent"] == "nodding"

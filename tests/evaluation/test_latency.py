@@ -1,9 +1,10 @@
 """The one latency measurement times the public path (tuple methods) and says what it times."""
+
 import jax
 import numpy as np
 
-from jgrounding.generators import methods, sampling
 from jgrounding.evaluation import latency
+from jgrounding.generators import methods, sampling
 
 
 def test_latency_goes_through_the_public_sampler_once_per_setting():

@@ -1,4 +1,5 @@
 """Physics metrics of generated samples: shape RMS, calibrated tolerance, every sample simulated."""
+
 import numpy as np
 import pytest
 

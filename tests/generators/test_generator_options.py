@@ -15,9 +15,15 @@ from jgrounding.generators import flows, methods
 from jgrounding.generators.networks import VelocityMLP
 
 
-@pytest.mark.parametrize("name,mean", [("uniform", 0.5), ("logit_normal", 0.5),
-                                       # pi0: lambda = 1 - (Beta(1.5, 1) * 0.999 + 0.001); E Beta(1.5, 1) = 0.6
-                                       ("beta", 1 - (0.6 * 0.999 + 0.001))])
+@pytest.mark.parametrize(
+    "name,mean",
+    [
+        ("uniform", 0.5),
+        ("logit_normal", 0.5),
+        # pi0: lambda = 1 - (Beta(1.5, 1) * 0.999 + 0.001); E Beta(1.5, 1) = 0.6
+        ("beta", 1 - (0.6 * 0.999 + 0.001)),
+    ],
+)
 def test_flow_time_samplers_lie_in_the_unit_interval_with_their_mean(name, mean):
     lam = np.asarray(flows.sample_flow_time(jax.random.key(0), (20_000,), name))
     assert lam.min() > 0 and lam.max() < 1
@@ -70,8 +76,9 @@ def test_condition_dropout_zeroes_the_condition():
 def tiny():
     lib = jg.load_library()
     cfg = training.TrainConfig(steps=20, chunk=10, condition_dropout=0.2)
-    return lib, methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=semantics.intent_embeddings(),
-                              progress=False)
+    return lib, methods.train(
+        "tuple_spline_rf", lib, (0, 1), cfg, intent_emb=semantics.intent_embeddings(), progress=False
+    )
 
 
 def test_guidance_extrapolates_from_the_null_condition(tiny):
@@ -108,8 +115,13 @@ def test_options_that_do_not_apply_are_refused():
 @pytest.mark.slow
 def test_reflow_keeps_seeds_shapes_and_starts_from_the_teacher(tiny):
     lib, tr = tiny
-    rf = methods.reflow(tr, lib, training.TrainConfig(steps=10, chunk=10, learning_rate=0.0, weight_decay=0.0),
-                        pairs_per_example=2, progress=False)
+    rf = methods.reflow(
+        tr,
+        lib,
+        training.TrainConfig(steps=10, chunk=10, learning_rate=0.0, weight_decay=0.0),
+        pairs_per_example=2,
+        progress=False,
+    )
     assert rf.seeds == tr.seeds and rf.losses.shape == (2, 10)
     same = jax.tree.map(lambda a, b: bool(np.allclose(a, b)), rf.params, tr.params)
     assert all(jax.tree.leaves(same))  # learning rate 0: the student is its teacher

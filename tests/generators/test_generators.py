@@ -1,10 +1,12 @@
 """Flows, training, checkpoints and the public sampler (issue: generators)."""
+
 import dataclasses
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from flax import nnx
 
 import jgrounding as jg
 from jgrounding import safety, training
@@ -12,7 +14,6 @@ from jgrounding.config import ModelConfig
 from jgrounding.generators import flows, methods
 from jgrounding.generators.networks import CNNRegressor, VelocityMLP
 from jgrounding.training import checkpoints
-from flax import nnx
 
 MODES = jnp.array([[-0.8, 0.8], [0.8, -0.8]])  # two modes for the same condition
 
@@ -25,6 +26,7 @@ def toy_train(generator: str, steps: int = 2500):
         model = CNNRegressor(1, True, channels=16, rngs=rngs)
     graphdef, params = nnx.split(model)
     data = jnp.repeat(MODES, 64, axis=0)
+
     def loss(p, idx, key):
         m = nnx.merge(graphdef, p)
         y = data[idx]
@@ -95,8 +97,7 @@ def test_resumed_training_equals_uninterrupted(tmp_path):
         methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False, on_chunk=stop_after_first)
     tree, meta = checkpoints.restore(tmp_path / "run", saved["template"], expect={"method": "tuple_spline_rf"})
     states = dataclasses.replace(tree, key=jax.random.wrap_key_data(jnp.asarray(tree.key)))
-    resumed = methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False,
-                            initial_states=states)
+    resumed = methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False, initial_states=states)
     for a, b in zip(jax.tree.leaves(full.params), jax.tree.leaves(resumed.params)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
@@ -137,15 +138,18 @@ def test_sample_follows_the_library():
     assert float(np.sqrt(((U - lib.heldout.u[j]) ** 2).mean(axis=(1, 2))).min()) < 0.35
 
 
-@pytest.mark.parametrize("kwargs, exc, match", [
-    (dict(intent="dance"), ValueError, "greeting"),
-    (dict(intensity="extreme"), ValueError, "subtle"),
-    (dict(num_samples=0), ValueError, "num_samples"),
-    (dict(num_samples=10**6), ValueError, "num_samples"),
-    (dict(sampler="heun"), ValueError, "euler"),
-    (dict(steps=0), ValueError, "steps"),
-    (dict(key=7), TypeError, "jax.random.key"),
-])
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        (dict(intent="dance"), ValueError, "greeting"),
+        (dict(intensity="extreme"), ValueError, "subtle"),
+        (dict(num_samples=0), ValueError, "num_samples"),
+        (dict(num_samples=10**6), ValueError, "num_samples"),
+        (dict(sampler="heun"), ValueError, "euler"),
+        (dict(steps=0), ValueError, "steps"),
+        (dict(key=7), TypeError, "jax.random.key"),
+    ],
+)
 def test_sample_rejects_bad_input(kwargs, exc, match):
     args = dict(key=jax.random.key(0), intent="greeting", intensity="moderate")
     args.update(kwargs)

@@ -1,5 +1,6 @@
 """The public sampler's fast path (issue #14): batched tuples, determinism, bucket independence, errors
 and no re-tracing."""
+
 import jax
 import numpy as np
 import pytest
@@ -13,10 +14,12 @@ def test_sequences_of_tuples_give_n_k_trajectories():
     key = jax.random.key(4)
     U = jg.sample(key, ["greeting", 9, "coiling"], ["subtle", "moderate", 3], num_samples=5, steps=4)
     assert U.shape == (3, 5, 150, 4) and U.dtype == np.float32 and safety.is_safe(U)
-    np.testing.assert_array_equal(U, jg.sample(key, ["greeting", 9, "coiling"], ["subtle", "moderate", 3],
-                                               num_samples=5, steps=4))
-    assert not np.array_equal(U, jg.sample(jax.random.key(5), ["greeting", 9, "coiling"],
-                                           ["subtle", "moderate", 3], num_samples=5, steps=4))
+    np.testing.assert_array_equal(
+        U, jg.sample(key, ["greeting", 9, "coiling"], ["subtle", "moderate", 3], num_samples=5, steps=4)
+    )
+    assert not np.array_equal(
+        U, jg.sample(jax.random.key(5), ["greeting", 9, "coiling"], ["subtle", "moderate", 3], num_samples=5, steps=4)
+    )
     # the first tuple's samples are those of the single-tuple call with the same key
     np.testing.assert_allclose(U[0], jg.sample(key, "greeting", "subtle", num_samples=5, steps=4), atol=1e-5)
 
@@ -38,16 +41,19 @@ def test_samples_do_not_depend_on_the_batch_bucket_or_chunking():
     assert len({float(np.abs(big[i] - big[0]).max()) for i in (1, 640, 699)}) == 3  # rows differ
 
 
-@pytest.mark.parametrize("intents, intensities, exc, match", [
-    (["greeting", "dance"], ["subtle", "subtle"], ValueError, "unknown intent 'dance'; valid intents: greeting"),
-    (["greeting"], ["subtle", "loud"], ValueError, "same length"),
-    ([0, 1], ["subtle", "extreme"], ValueError, "valid intensit.*: subtle"),
-    ([], [], ValueError, "at least one tuple"),
-    ({"a": 1}, "subtle", ValueError, "valid: greeting"),
-    ([], [], ValueError, "valid intents: greeting"),
-    ([[0, 1]], "subtle", ValueError, "greeting"),
-    ([16], "subtle", ValueError, "out of range 0..15"),
-])
+@pytest.mark.parametrize(
+    "intents, intensities, exc, match",
+    [
+        (["greeting", "dance"], ["subtle", "subtle"], ValueError, "unknown intent 'dance'; valid intents: greeting"),
+        (["greeting"], ["subtle", "loud"], ValueError, "same length"),
+        ([0, 1], ["subtle", "extreme"], ValueError, "valid intensit.*: subtle"),
+        ([], [], ValueError, "at least one tuple"),
+        ({"a": 1}, "subtle", ValueError, "valid: greeting"),
+        ([], [], ValueError, "valid intents: greeting"),
+        ([[0, 1]], "subtle", ValueError, "greeting"),
+        ([16], "subtle", ValueError, "out of range 0..15"),
+    ],
+)
 def test_sequences_are_validated_with_the_vocabulary_messages(intents, intensities, exc, match):
     with pytest.raises(exc, match=match):
         jg.sample(jax.random.key(0), intents, intensities)
@@ -61,8 +67,9 @@ def test_too_many_trajectories_per_call_are_refused():
 def test_repeated_public_calls_trace_once_per_sampler_steps_bucket():
     name = str(sampling.DEFAULT_CHECKPOINT)
     config = ("midpoint", 3)
-    for seed, (intent, intensity, k) in enumerate([("greeting", "subtle", 1), (4, 2, 1), ("resting", 0, 1),
-                                                    ("pointing", 1, 5), (0, 3, 7), ([1, 2], 0, 3)]):
+    for seed, (intent, intensity, k) in enumerate(
+        [("greeting", "subtle", 1), (4, 2, 1), ("resting", 0, 1), ("pointing", 1, 5), (0, 3, 7), ([1, 2], 0, 3)]
+    ):
         jg.sample(jax.random.key(seed), intent, intensity, num_samples=k, sampler=config[0], steps=config[1])
         jg.sample(jax.random.PRNGKey(seed), intent, intensity, num_samples=k, sampler=config[0], steps=config[1])
     assert sampling.TRACES[(name, *config, 1)] == 1
@@ -77,6 +84,7 @@ def test_fuzzed_public_calls_are_all_safe():
     counts = bench_fuzz.fuzz(seed=1, trajectories=20_000)  # `python -m experiments.bench fuzz`: >= 1,000,000
     assert counts["bad"] == 0 and counts["trajectories"] >= 20_000 and len(counts["configs"]) >= 4
 
+
 def test_sample_blends_in_from_the_current_command_and_a_stream_never_jumps():
     key = jax.random.key(3)
     raw = jg.sample(key, "beckoning", "emphatic", current=None)  # the model's own first step
@@ -84,11 +92,12 @@ def test_sample_blends_in_from_the_current_command_and_a_stream_never_jumps():
     held = np.array([0.3, 0.1, 0.6, 0.0], np.float32)
     u = jg.sample(key, "beckoning", "emphatic", num_samples=4, current=held)
     assert jg.safety.is_safe(u, current=held) and np.allclose(u[:, 0], held)
-    np.testing.assert_allclose(u[0, jg.safety.BLEND_STEPS:], raw[jg.safety.BLEND_STEPS:], atol=1e-5)
+    np.testing.assert_allclose(u[0, jg.safety.BLEND_STEPS :], raw[jg.safety.BLEND_STEPS :], atol=1e-5)
     # a stream of consecutive responses, each from where the last left the robot, never exceeds the bound
     stream, current = [np.zeros((1, 4), np.float32)], "rest"
-    for turn, (m, z) in enumerate([("greeting", 3), ("refusing", 3), ("coiling", 0), ("celebrating", 3),
-                                   ("withdrawal", 2), ("embracing", 3)]):
+    for turn, (m, z) in enumerate(
+        [("greeting", 3), ("refusing", 3), ("coiling", 0), ("celebrating", 3), ("withdrawal", 2), ("embracing", 3)]
+    ):
         out = jg.sample(jax.random.key(turn), m, z, current=current)
         stream.append(out)
         current = out[-1]

@@ -1,11 +1,11 @@
 """Importing recorded demonstrations (issue #18): every bad-data case with its message, N_u != 4, card."""
+
 import json
 
 import numpy as np
 import pytest
 
 from jgrounding import load_library
-
 from jgrounding.actuation import splines
 from jgrounding.library import importer
 from jgrounding.library.importer import DemonstrationError, ImportConfig, import_folder
@@ -34,11 +34,15 @@ def write_folder(path, num_tendons=4, realizations=3, limits=(2.0, 12.0), rows=1
             (path / file).write_text("\n".join(lines) + "\n")
             entries.append((file, name, level, f"say it {r}"))
     if manifest == "csv":
-        (path / "manifest.csv").write_text("file,intent,intensity,texts\n"
-                                           + "".join(f"{f},{m},{z},{t}\n" for f, m, z, t in entries))
+        (path / "manifest.csv").write_text(
+            "file,intent,intensity,texts\n" + "".join(f"{f},{m},{z},{t}\n" for f, m, z, t in entries)
+        )
     else:
-        (path / "manifest.json").write_text(json.dumps({"demonstrations": [
-            {"file": f, "intent": m, "intensity": z, "texts": [t]} for f, m, z, t in entries]}))
+        (path / "manifest.json").write_text(
+            json.dumps(
+                {"demonstrations": [{"file": f, "intent": m, "intensity": z, "texts": [t]} for f, m, z, t in entries]}
+            )
+        )
     return path
 
 
@@ -57,8 +61,10 @@ def test_clean_folder_imports_with_a_balanced_split_and_card(tmp_path):
     arrays, card = import_folder(write_folder(tmp_path / "rec"), config())
     assert arrays["u"].shape == (6, 150, 4) and arrays["controls"].shape == (6, 4, 4)
     assert 0.0 <= arrays["u"].min() and arrays["u"].max() <= 1.0
-    assert card["counts_per_tuple"] == {"nodding/moderate": {"train": 2, "heldout": 1},
-                                        "greeting/emphatic": {"train": 2, "heldout": 1}}
+    assert card["counts_per_tuple"] == {
+        "nodding/moderate": {"train": 2, "heldout": 1},
+        "greeting/emphatic": {"train": 2, "heldout": 1},
+    }
     assert set(card["sources_sha256"]) == {f"{m}_{z}_{r}" + ".csv" for m, z in TUPLES for r in range(3)}
     assert card["rejected"] == [] and card["dropped"] == []
     assert any("--simulate" in s for s in card["screening"])  # 4 tendons, not simulated: the card says so
@@ -78,28 +84,44 @@ def test_units_are_mapped_from_the_declared_limits(tmp_path):
 def test_library_loads_and_cli_writes_npz_and_card(tmp_path, capsys):
     folder = write_folder(tmp_path / "rec", manifest="json")
     out = tmp_path / "my_library.npz"
-    assert importer.main(["import", str(folder), "--out", str(out), "--limits", "2:12", "--tendons", "4",
-                          "--controls", "5"]) == 0
+    assert (
+        importer.main(
+            ["import", str(folder), "--out", str(out), "--limits", "2:12", "--tendons", "4", "--controls", "5"]
+        )
+        == 0
+    )
     lib = load_library(out)
     assert len(lib.train) == 4 and len(lib.heldout) == 2 and lib.train.controls.shape[1:] == (4, 5)
     assert lib.meta["reduced"] and lib.meta["num_tendons"] == 4
     assert "wrote" in capsys.readouterr().out and not list(tmp_path.glob(".*tmp"))
 
 
-@pytest.mark.parametrize("case, edit, match", [
-    ("nan", lambda p: edit_line(p, 5, "0.160,nan,5,5,5"), r"nodding_moderate_0.csv line 5, column 'pull_0': NaN"),
-    ("inf", lambda p: edit_line(p, 7, "0.240,5,5,inf,5"), r"line 7, column 'pull_2': Inf"),
-    ("empty", lambda p: edit_line(p, 9, "0.320,5,,5,5"), r"line 9, column 'pull_1': empty value"),
-    ("duplicate time", lambda p: edit_line(p, 4, "0.040,5,5,5,5"), r"line 4, column 'time': duplicate time stamp"),
-    ("time backwards", lambda p: edit_line(p, 6, "0.100,5,5,5,5"), r"line 6, column 'time': time goes backwards"),
-    ("too short", lambda p: p.write_text("time,a,b,c,d\n" + "".join(f"{i},5,5,5,5\n" for i in range(4))),
-     r"nodding_moderate_0.csv: only 4 data row\(s\); at least 10"),
-    ("columns", lambda p: p.write_text("time,a,b,c\n" + "".join(f"{i},5,5,5\n" for i in range(20))),
-     r"line 1: 3 tendon column\(s\) \['a', 'b', 'c'\], but 4 tendon limits"),
-    ("limits", lambda p: edit_line(p, 8, "0.240,5,12.5,5,5"),
-     r"line 8, column 'pull_1': value 12.5 is outside the declared limits \[2, 12\]"),
-    ("ragged", lambda p: edit_line(p, 3, "0.040,5,5"), r"line 3: 3 cells, but the header has 5"),
-])
+@pytest.mark.parametrize(
+    "case, edit, match",
+    [
+        ("nan", lambda p: edit_line(p, 5, "0.160,nan,5,5,5"), r"nodding_moderate_0.csv line 5, column 'pull_0': NaN"),
+        ("inf", lambda p: edit_line(p, 7, "0.240,5,5,inf,5"), r"line 7, column 'pull_2': Inf"),
+        ("empty", lambda p: edit_line(p, 9, "0.320,5,,5,5"), r"line 9, column 'pull_1': empty value"),
+        ("duplicate time", lambda p: edit_line(p, 4, "0.040,5,5,5,5"), r"line 4, column 'time': duplicate time stamp"),
+        ("time backwards", lambda p: edit_line(p, 6, "0.100,5,5,5,5"), r"line 6, column 'time': time goes backwards"),
+        (
+            "too short",
+            lambda p: p.write_text("time,a,b,c,d\n" + "".join(f"{i},5,5,5,5\n" for i in range(4))),
+            r"nodding_moderate_0.csv: only 4 data row\(s\); at least 10",
+        ),
+        (
+            "columns",
+            lambda p: p.write_text("time,a,b,c\n" + "".join(f"{i},5,5,5\n" for i in range(20))),
+            r"line 1: 3 tendon column\(s\) \['a', 'b', 'c'\], but 4 tendon limits",
+        ),
+        (
+            "limits",
+            lambda p: edit_line(p, 8, "0.240,5,12.5,5,5"),
+            r"line 8, column 'pull_1': value 12.5 is outside the declared limits \[2, 12\]",
+        ),
+        ("ragged", lambda p: edit_line(p, 3, "0.040,5,5"), r"line 3: 3 cells, but the header has 5"),
+    ],
+)
 def test_bad_recording_names_file_line_and_column(tmp_path, case, edit, match):
     folder = write_folder(tmp_path / "rec")
     edit(folder / "nodding_moderate_0.csv")
@@ -107,17 +129,33 @@ def test_bad_recording_names_file_line_and_column(tmp_path, case, edit, match):
         import_folder(folder, config())
 
 
-@pytest.mark.parametrize("field, value, match", [
-    ("intent", "waving", r"manifest.csv line 2, column 'intent': nodding_moderate_0.csv: unknown intent 'waving'; "
-                         r"valid intents: greeting, farewell"),
-    ("intensity", "huge", r"line 2, column 'intensity': .*unknown intensity 'huge'; valid intensities: subtle, "
-                          r"moderate, pronounced, emphatic"),
-])
+@pytest.mark.parametrize(
+    "field, value, match",
+    [
+        (
+            "intent",
+            "waving",
+            r"manifest.csv line 2, column 'intent': nodding_moderate_0.csv: unknown intent 'waving'; "
+            r"valid intents: greeting, farewell",
+        ),
+        (
+            "intensity",
+            "huge",
+            r"line 2, column 'intensity': .*unknown intensity 'huge'; valid intensities: subtle, "
+            r"moderate, pronounced, emphatic",
+        ),
+    ],
+)
 def test_unknown_labels_list_the_valid_ones(tmp_path, field, value, match):
     folder = write_folder(tmp_path / "rec")
-    text = (folder / "manifest.csv").read_text().replace("nodding_moderate_0.csv,nodding,moderate",
-                                                         "nodding_moderate_0.csv,waving,moderate" if field == "intent"
-                                                         else "nodding_moderate_0.csv,nodding,huge")
+    text = (
+        (folder / "manifest.csv")
+        .read_text()
+        .replace(
+            "nodding_moderate_0.csv,nodding,moderate",
+            "nodding_moderate_0.csv,waving,moderate" if field == "intent" else "nodding_moderate_0.csv,nodding,huge",
+        )
+    )
     (folder / "manifest.csv").write_text(text)
     with pytest.raises(DemonstrationError, match=match):
         import_folder(folder, config())
@@ -134,9 +172,12 @@ def test_json_manifest_rows_are_entries(tmp_path):
 
 def test_tuple_with_too_few_realizations_for_the_split(tmp_path):
     folder = write_folder(tmp_path / "rec", realizations=1)
-    with pytest.raises(DemonstrationError, match=r"manifest.csv line 3: tuple greeting/emphatic has 1 valid "
-                                                  r"realization\(s\) \(greeting_emphatic_0.csv\); the train/held-out "
-                                                  r"split needs at least 2"):
+    with pytest.raises(
+        DemonstrationError,
+        match=r"manifest.csv line 3: tuple greeting/emphatic has 1 valid "
+        r"realization\(s\) \(greeting_emphatic_0.csv\); the train/held-out "
+        r"split needs at least 2",
+    ):
         import_folder(folder, config())
 
 
@@ -145,7 +186,9 @@ def test_screening_rejection_is_named_in_the_split_error(tmp_path):
     rng = np.random.default_rng(1)  # sensor noise: third differences far above the smoothness bound
     x = 2.0 + 10.0 * np.clip(0.5 + 0.05 * rng.standard_normal((120, 4)), 0, 1)
     (folder / "greeting_emphatic_1.csv").write_text(
-        "time,a,b,c,d\n" + "".join(f"{0.04 * i:.3f}," + ",".join(f"{v:.4f}" for v in row) + "\n" for i, row in enumerate(x)))
+        "time,a,b,c,d\n"
+        + "".join(f"{0.04 * i:.3f}," + ",".join(f"{v:.4f}" for v in row) + "\n" for i, row in enumerate(x))
+    )
     with pytest.raises(DemonstrationError, match=r"rejected by screening: greeting_emphatic_1.csv \(.*smooth\)"):
         import_folder(folder, config())
 
@@ -156,8 +199,12 @@ def test_drop_invalid_keeps_going_and_lists_everything_dropped(tmp_path, capsys)
     edit_line(folder / "nodding_moderate_1.csv", 4, "0.040,5,5,5,5")
     (folder / "manifest.csv").write_text((folder / "manifest.csv").read_text() + "ghost.csv,nodding,subtle,\n")
     out = tmp_path / "lib.npz"
-    assert importer.main(["import", str(folder), "--out", str(out), "--limits", "2:12", "--tendons", "4",
-                          "--drop-invalid"]) == 0
+    assert (
+        importer.main(
+            ["import", str(folder), "--out", str(out), "--limits", "2:12", "--tendons", "4", "--drop-invalid"]
+        )
+        == 0
+    )
     card = json.loads(out.with_suffix(".json").read_text())
     reasons = [d["reason"] for d in card["dropped"]]
     assert len(reasons) == 4  # NaN, duplicate stamp, missing file, and then nodding/moderate has one left
@@ -220,9 +267,29 @@ def test_module_entry_point_imports_a_folder(tmp_path):
 
     folder = write_folder(tmp_path / "rec", num_tendons=6, manifest="json")
     out = tmp_path / "six.npz"
-    res = subprocess.run([sys.executable, "-m", "jgrounding.library", "import", str(folder), "--out", str(out),
-                          "--limits", "2:12", "--tendons", "6", "--controls", "5"], capture_output=True, text=True)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "jgrounding.library",
+            "import",
+            str(folder),
+            "--out",
+            str(out),
+            "--limits",
+            "2:12",
+            "--tendons",
+            "6",
+            "--controls",
+            "5",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode == 0, res.stderr
-    assert "N_u = 6" in res.stdout and "the built-in simulator is the 4-tendon trunk, these data have N_u = 6" in res.stdout
+    assert (
+        "N_u = 6" in res.stdout
+        and "the built-in simulator is the 4-tendon trunk, these data have N_u = 6" in res.stdout
+    )
     lib = load_library(out)
     assert lib.train.u.shape == (4, 150, 6) and lib.train.controls.shape == (4, 6, 5)

@@ -1,4 +1,5 @@
 """The demonstration library (SPEC §3) and the metrics that judge against it (SPEC §6)."""
+
 import numpy as np
 import pytest
 

@@ -1,23 +1,38 @@
 """Training and sampling on an imported library (issue #18): N_u from the data, checkpoint refusals."""
-import numpy as np
-import pytest
 
 import jax
+import numpy as np
+import pytest
+from test_importer import write_folder
+
 import jgrounding as jg
 from jgrounding import library
+from jgrounding.generators import methods, sampling
 from jgrounding.library import importer
-from jgrounding.generators import methods
-from jgrounding.generators import sampling
 from jgrounding.training import TrainConfig
-from test_importer import write_folder
 
 
 @pytest.fixture(scope="module")
 def three_tendon_library(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("own")
     out = tmp / "my_library.npz"
-    assert importer.main(["import", str(write_folder(tmp / "rec", num_tendons=3)), "--out", str(out),
-                          "--limits", "2:12", "--tendons", "3", "--controls", "4"]) == 0
+    assert (
+        importer.main(
+            [
+                "import",
+                str(write_folder(tmp / "rec", num_tendons=3)),
+                "--out",
+                str(out),
+                "--limits",
+                "2:12",
+                "--tendons",
+                "3",
+                "--controls",
+                "4",
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -34,16 +49,23 @@ def test_train_cli_and_sample_three_tendons(three_tendon_library, tmp_path):
     from experiments import train
 
     out = tmp_path / "mine"
-    assert train.main(["--library", str(three_tendon_library), "--out", str(out), "--steps", "10", "--chunk", "10"]) == 0
+    assert (
+        train.main(["--library", str(three_tendon_library), "--out", str(out), "--steps", "10", "--chunk", "10"]) == 0
+    )
     u = jg.sample(jax.random.key(0), "nodding", "moderate", num_samples=3, checkpoint=str(out))
     assert u.shape == (3, 150, 3) and 0.0 <= u.min() and u.max() <= 1.0
-    with pytest.raises(ValueError, match=r"trained on a library without \(comforting, subtle\); its tuples: "
-                                         r"greeting/emphatic, nodding/moderate"):
+    with pytest.raises(
+        ValueError,
+        match=r"trained on a library without \(comforting, subtle\); its tuples: "
+        r"greeting/emphatic, nodding/moderate",
+    ):
         jg.sample(jax.random.key(0), "comforting", "subtle", checkpoint=str(out))
     arrays = dict(np.load(three_tendon_library))  # the library changes after training: the checkpoint is refused
     arrays["u"] = arrays["u"] * 0.5
     library.save(arrays, jg.load_library(three_tendon_library).meta, three_tendon_library)
-    with pytest.raises(ValueError, match="was trained on library .*my_library.npz with sha256 .* but that file now has"):
+    with pytest.raises(
+        ValueError, match="was trained on library .*my_library.npz with sha256 .* but that file now has"
+    ):
         sampling.load.cache_clear()  # a new process would load it afresh
         jg.sample(jax.random.key(0), "nodding", "moderate", checkpoint=str(out))
 
@@ -53,10 +75,28 @@ def test_ablation_runs_on_a_three_tendon_library_without_physics(three_tendon_li
     from experiments import ablation
 
     out = tmp_path / "abl"
-    assert ablation.main(["--quick", "--steps", "5", "--seeds", "0", "--methods", "tuple_spline_cnn",
-                          "--library", str(three_tendon_library), "--out", str(out)]) == 0
+    assert (
+        ablation.main(
+            [
+                "--quick",
+                "--steps",
+                "5",
+                "--seeds",
+                "0",
+                "--methods",
+                "tuple_spline_cnn",
+                "--library",
+                str(three_tendon_library),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
-    assert "physics-aware row skipped: the built-in simulator is the 4-tendon trunk, this library has N_u = 3" in printed
+    assert (
+        "physics-aware row skipped: the built-in simulator is the 4-tendon trunk, this library has N_u = 3" in printed
+    )
     table = (out / "ablation.md").read_text()
     assert "Tuple + Spline + CNN" in table and "Oracle" in table
     assert "Wrong intent" in table  # two intents in the library: the wrong-intent reference exists

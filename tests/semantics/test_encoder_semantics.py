@@ -1,4 +1,5 @@
 """The JAX MiniLM encoder and the embedded semantic reducer (Sec. III-A)."""
+
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,15 @@ def test_shipped_intent_embeddings_match_a_fresh_computation():
     np.testing.assert_allclose(semantics.intent_embeddings(), semantics.compute_intent_embeddings(), atol=1e-5)
 
 
-@pytest.mark.parametrize("text, intent", [
-    ("User seems sad; respond calmly with a gentle touch.", "comforting"),
-    ("They are leaving now, wave goodbye.", "farewell"),
-    ("The user said I'm too close; back away and give them space.", "withdrawal"),
-    ("Agree with the user by nodding.", "nodding"),
-])
+@pytest.mark.parametrize(
+    "text, intent",
+    [
+        ("User seems sad; respond calmly with a gentle touch.", "comforting"),
+        ("They are leaving now, wave goodbye.", "farewell"),
+        ("The user said I'm too close; back away and give them space.", "withdrawal"),
+        ("Agree with the user by nodding.", "nodding"),
+    ],
+)
 def test_clear_responses_ground_to_their_intent(text, intent):
     g = jg.ground(text)
     assert g.intent == intent and g.backend == "embedded" and g.confident

@@ -1,4 +1,5 @@
 """The trained semantic head: ordinal intensity, the bounded decision, calibration, confidence gating."""
+
 import io
 
 import jax

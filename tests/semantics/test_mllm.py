@@ -1,4 +1,5 @@
 """The MLLM backend against a fake OpenAI-compatible server on loopback."""
+
 import json
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -21,8 +22,11 @@ class FakeServer:
                 body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
                 outer.requests.append(body)
                 reply = outer.replies.pop(0) if len(outer.replies) > 1 else outer.replies[0]
-                doc = reply if isinstance(reply, dict) else {"choices": [{"message": {"role": "assistant",
-                                                                                      "content": reply}}]}
+                doc = (
+                    reply
+                    if isinstance(reply, dict)
+                    else {"choices": [{"message": {"role": "assistant", "content": reply}}]}
+                )
                 data = json.dumps(doc).encode()
                 self.send_response(200)
                 self.send_header("Content-Type", "application/json")
@@ -46,8 +50,10 @@ class FakeServer:
         self.httpd.server_close()
 
 
-@pytest.mark.parametrize("payload", [{"choices": []}, {"choices": [{"message": {"content": None}}]},
-                                     {"error": "overloaded"}, {"choices": "nope"}])
+@pytest.mark.parametrize(
+    "payload",
+    [{"choices": []}, {"choices": [{"message": {"content": None}}]}, {"error": "overloaded"}, {"choices": "nope"}],
+)
 def test_malformed_payloads_fall_back_not_crash(payload):
     with FakeServer([payload]) as s:
         g = jg.ground("Wave hello to the user!", backend="mllm", url=s.url, retries=1)
@@ -85,8 +91,13 @@ def test_server_down_falls_back():
 
 def test_response_reasoning_eq2():
     with FakeServer(["The user seems sad; respond calmly with a gentle touch."]) as s:
-        text = mllm.reason(mllm.Observation(visual="a person slumped on a chair", transcript="I failed my exam",
-                                            tactile=("light stroke",)), [("greeting", "moderate")], url=s.url)
+        text = mllm.reason(
+            mllm.Observation(
+                visual="a person slumped on a chair", transcript="I failed my exam", tactile=("light stroke",)
+            ),
+            [("greeting", "moderate")],
+            url=s.url,
+        )
     assert "sad" in text
     prompt = s.requests[0]["messages"][1]["content"]
     assert "I failed my exam" in prompt and "greeting/moderate" in prompt

@@ -1,12 +1,12 @@
 """The two camera views show what the docs say they show: in the side view the user is on the right, in the
 rear view the robot's left is on the left; several views tile side by side; the fallback draws them too."""
+
 import ctypes.util
 
 import numpy as np
 import pytest
 
 from jgrounding import sim
-
 from jgrounding.sim import render
 
 

@@ -1,4 +1,5 @@
 """The tendon-driven trunk: conventions, rollouts, features, MJX/native agreement."""
+
 import numpy as np
 import pytest
 
@@ -24,8 +25,16 @@ def test_rollout_shapes_and_rest_posture():
 
 
 def test_each_tendon_bends_toward_its_side_and_cocontraction_retracts():
-    u = np.stack([hold([0.6, 0, 0, 0]), hold([0, 0.6, 0, 0]), hold([0, 0, 0.6, 0]), hold([0, 0, 0, 0.6]),
-                  hold([0.6, 0.6, 0.6, 0.6]), hold([0, 0, 0, 0])])
+    u = np.stack(
+        [
+            hold([0.6, 0, 0, 0]),
+            hold([0, 0.6, 0, 0]),
+            hold([0, 0, 0.6, 0]),
+            hold([0, 0, 0, 0.6]),
+            hold([0.6, 0.6, 0.6, 0.6]),
+            hold([0, 0, 0, 0]),
+        ]
+    )
     tip = sim.rollout(u, contact=False).tip[:, -1]
     assert tip[0, 0] > 0.15 and tip[2, 0] < -0.15  # toward / away from the user (x)
     assert tip[1, 1] > 0.15 and tip[3, 1] < -0.15  # left / right (y)
@@ -50,16 +59,27 @@ def test_auto_engine_is_native_on_cpu():
 
 def test_features_cover_the_shape_vocabulary():
     f = sim.features(sim.rollout(np.stack([hold([0.5, 0, 0, 0]), hold([0, 0, 0.5, 0])])))
-    for k in ("reach_toward_user", "curvature_max", "lateral_excursion", "vertical_excursion",
-              "min_user_distance", "peak_tip_speed"):
+    for k in (
+        "reach_toward_user",
+        "curvature_max",
+        "lateral_excursion",
+        "vertical_excursion",
+        "min_user_distance",
+        "peak_tip_speed",
+    ):
         assert f[k].shape == (2,)
     assert f["reach_toward_user"][0] > 0.1 > f["reach_toward_user"][1]
     assert f["retreat_from_user"][1] > 0.1
 
 
-@pytest.mark.parametrize("bad, match", [
-    (np.zeros((150, 3)), "shape"), (np.full((150, 4), 1.5), r"\[0, 1\]"), (np.full((150, 4), np.nan), "NaN"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (np.zeros((150, 3)), "shape"),
+        (np.full((150, 4), 1.5), r"\[0, 1\]"),
+        (np.full((150, 4), np.nan), "NaN"),
+    ],
+)
 def test_bad_commands_raise(bad, match):
     with pytest.raises(ValueError, match=match):
         sim.rollout(bad)
@@ -97,8 +117,12 @@ def test_mjx_agrees_with_native(contact):
     trunk_mjx.enable_compilation_cache()
     t = np.linspace(0, 1, 150)[:, None]
     reach = np.clip(1.5 * t, 0, 1)
-    u = np.stack([np.hstack([reach, 0 * t, 0 * t, 0.1 * t]),  # reaches the user and presses on it
-                  np.hstack([0 * t, 0.5 + 0.4 * np.sin(6 * t), 0.4 * t, 0 * t])])  # swings away, no contact
+    u = np.stack(
+        [
+            np.hstack([reach, 0 * t, 0 * t, 0.1 * t]),  # reaches the user and presses on it
+            np.hstack([0 * t, 0.5 + 0.4 * np.sin(6 * t), 0.4 * t, 0 * t]),
+        ]
+    )  # swings away, no contact
     a, b = sim.rollout(u, engine="mjx", contact=contact), sim.rollout(u, engine="native", contact=contact)
     err = np.linalg.norm(a.tip - b.tip, axis=-1)
     assert err[:, 29].max() < 1e-3  # 1 mm after 1 s

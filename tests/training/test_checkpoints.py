@@ -3,6 +3,7 @@
 ``checkpoints.restore`` checks the vocabulary, the array shapes, a digest of the stored arrays and
 finiteness; ``sampling.load`` adds a self-test sample before it accepts a model.
 """
+
 import gc
 import json
 import shutil
@@ -16,9 +17,8 @@ import pytest
 
 import jgrounding as jg
 from jgrounding import safety
+from jgrounding.generators import methods, sampling
 from jgrounding.training import checkpoints
-from jgrounding.generators import methods
-from jgrounding.generators import sampling
 
 
 @pytest.fixture(scope="module")

@@ -3,6 +3,7 @@
 The sharded runs happen in a subprocess with four forced host devices
 (``XLA_FLAGS=--xla_force_host_platform_device_count=4``), which print JSON for the asserts here.
 """
+
 import json
 import os
 import subprocess
@@ -91,8 +92,12 @@ print("RESULT " + json.dumps({"process": jax.process_index(), "processes": jax.p
 
 
 def _env(devices: int) -> dict:
-    env = {**os.environ, "JAX_PLATFORMS": "cpu", "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
-           "PYTHONPATH": str(ROOT)}
+    env = {
+        **os.environ,
+        "JAX_PLATFORMS": "cpu",
+        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
+        "PYTHONPATH": str(ROOT),
+    }
     for name in distributed.ENV + ("SLURM_NTASKS", "OMPI_COMM_WORLD_SIZE"):
         env.pop(name, None)
     return env
@@ -100,13 +105,14 @@ def _env(devices: int) -> dict:
 
 def _result(stdout: str) -> dict:
     line = [x for x in stdout.splitlines() if x.startswith("RESULT ")][-1]
-    return json.loads(line[len("RESULT "):])
+    return json.loads(line[len("RESULT ") :])
 
 
 @pytest.fixture(scope="module")
 def sharded_run():
-    proc = subprocess.run([sys.executable, "-c", WORKER], env=_env(4), cwd=ROOT, capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", WORKER], env=_env(4), cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     return _result(proc.stdout)
 
@@ -147,12 +153,17 @@ def test_initialize_is_a_noop_on_one_host(monkeypatch):
     assert distributed.initialize() is False
 
 
-@pytest.mark.parametrize("env, match", [
-    ({"JAX_COORDINATOR_ADDRESS": "10.0.0.1:1234"}, "JAX_NUM_PROCESSES, JAX_PROCESS_ID"),
-    ({"JAX_COORDINATOR_ADDRESS": "10.0.0.1:1234", "JAX_NUM_PROCESSES": "two"}, "must be an integer"),
-    ({"JAX_COORDINATOR_ADDRESS": "10.0.0.1:1234", "JAX_NUM_PROCESSES": "2", "JAX_PROCESS_ID": "2"},
-     "0..JAX_NUM_PROCESSES-1"),
-])
+@pytest.mark.parametrize(
+    "env, match",
+    [
+        ({"JAX_COORDINATOR_ADDRESS": "10.0.0.1:1234"}, "JAX_NUM_PROCESSES, JAX_PROCESS_ID"),
+        ({"JAX_COORDINATOR_ADDRESS": "10.0.0.1:1234", "JAX_NUM_PROCESSES": "two"}, "must be an integer"),
+        (
+            {"JAX_COORDINATOR_ADDRESS": "10.0.0.1:1234", "JAX_NUM_PROCESSES": "2", "JAX_PROCESS_ID": "2"},
+            "0..JAX_NUM_PROCESSES-1",
+        ),
+    ],
+)
 def test_initialize_names_what_a_multi_host_job_needs(monkeypatch, env, match):
     for name in distributed.ENV + ("SLURM_NTASKS", "OMPI_COMM_WORLD_SIZE"):
         monkeypatch.delenv(name, raising=False)
@@ -193,10 +204,22 @@ def test_multi_host_job_equals_one_process(tmp_path):
         port = sock.getsockname()[1]
     procs = []
     for pid in range(2):
-        env = {**_env(2), "JAX_COORDINATOR_ADDRESS": f"127.0.0.1:{port}", "JAX_NUM_PROCESSES": "2",
-               "JAX_PROCESS_ID": str(pid)}
-        procs.append(subprocess.Popen([sys.executable, "-c", MULTI_HOST, str(tmp_path / f"p{pid}.npz")], env=env,
-                                      cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        env = {
+            **_env(2),
+            "JAX_COORDINATOR_ADDRESS": f"127.0.0.1:{port}",
+            "JAX_NUM_PROCESSES": "2",
+            "JAX_PROCESS_ID": str(pid),
+        }
+        procs.append(
+            subprocess.Popen(
+                [sys.executable, "-c", MULTI_HOST, str(tmp_path / f"p{pid}.npz")],
+                env=env,
+                cwd=ROOT,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        )
     outs = [p.communicate(timeout=240) for p in procs]
     for p, (out, err) in zip(procs, outs):
         assert p.returncode == 0, err[-3000:]
@@ -205,8 +228,14 @@ def test_multi_host_job_equals_one_process(tmp_path):
     assert all(r["processes"] == 2 and r["devices"] == 4 and r["local_devices"] == 2 for r in results)
 
     emb = np.random.default_rng(0).normal(size=(16, 384)).astype(np.float32)
-    tr = methods.train("tuple_spline_rf", jg.load_library(), (0, 1, 2), training.TrainConfig(steps=20, chunk=10),
-                       intent_emb=emb, progress=False)
+    tr = methods.train(
+        "tuple_spline_rf",
+        jg.load_library(),
+        (0, 1, 2),
+        training.TrainConfig(steps=20, chunk=10),
+        intent_emb=emb,
+        progress=False,
+    )
     u = methods.generate(tr, emb[:6], np.arange(6) % 4, jax.random.key(1), num_samples=4, batch=8, steps=4)
     params = [np.asarray(x) for x in jax.tree.leaves(tr.params)]
     for pid in range(2):

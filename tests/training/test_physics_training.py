@@ -1,4 +1,5 @@
 """Physics-aware fine-tuning: screened candidates refill rejected slots; the fine-tuned RF keeps its shapes."""
+
 import jax
 import numpy as np
 import pytest

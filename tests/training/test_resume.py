@@ -1,5 +1,6 @@
 """Kill-and-resume (issue: reliability): a training process SIGKILLed mid-run resumes from its last
 chunk checkpoint and ends with parameters identical to an uninterrupted run."""
+
 import os
 import signal
 import subprocess
@@ -10,19 +11,29 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jgrounding.training import checkpoints
-
-from jgrounding.training import distributed
-
 from jgrounding.generators import methods
+from jgrounding.training import checkpoints, distributed
 
 ROOT = Path(__file__).resolve().parents[2]
 STEPS, CHUNK = 2000, 100
 
 
 def _command(out: Path) -> list[str]:
-    return [sys.executable, "-m", "experiments.train", "--method", "tuple_spline_rf", "--steps", str(STEPS),
-            "--chunk", str(CHUNK), "--seeds", "0,1", "--out", str(out)]
+    return [
+        sys.executable,
+        "-m",
+        "experiments.train",
+        "--method",
+        "tuple_spline_rf",
+        "--steps",
+        str(STEPS),
+        "--chunk",
+        str(CHUNK),
+        "--seeds",
+        "0,1",
+        "--out",
+        str(out),
+    ]
 
 
 def _env() -> dict:
@@ -41,10 +52,12 @@ def _final_params(out: Path):
 @pytest.mark.slow
 def test_sigkilled_training_resumes_to_identical_parameters(tmp_path):
     killed_out, full_out = tmp_path / "killed", tmp_path / "full"
-    full = subprocess.Popen(_command(full_out), env=_env(), cwd=ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
-    victim = subprocess.Popen(_command(killed_out), env=_env(), cwd=ROOT, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
+    full = subprocess.Popen(
+        _command(full_out), env=_env(), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    victim = subprocess.Popen(
+        _command(killed_out), env=_env(), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     run_meta = Path(str(killed_out) + ".run") / "meta.json"
     deadline = time.monotonic() + 120
     while not run_meta.exists() and victim.poll() is None and time.monotonic() < deadline:
