@@ -367,7 +367,15 @@ def sample(
         if screen is not True:
             raise ValueError(f"screen must be True or False, got {screen!r}")
         return screened(
-            key, intent, intensity, num_samples, sampler=sampler, steps=steps, checkpoint=checkpoint, current=current
+            key,
+            intent,
+            intensity,
+            num_samples,
+            sampler=sampler,
+            steps=steps,
+            checkpoint=checkpoint,
+            current=current,
+            allow_library_mismatch=allow_library_mismatch,
         ).u
     if checkpoint is None and isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
         checkpoint = shipped_checkpoint(int(steps))
