@@ -10,9 +10,13 @@ tau = 0.35 are checked and printed.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from jgrounding import library, load_library
 from jgrounding.evaluation import metrics
+from jgrounding.io import write_atomic
+
+RESULTS = Path(__file__).resolve().parent.parent / "results" / "references.md"
 
 NAMES = {
     "oracle": "oracle (same-tuple replay)",
@@ -33,19 +37,36 @@ def table(b: dict, taus=metrics.TAUS) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--library", default=None, help="library .npz (default: the shipped one)")
+    p.add_argument("--write", action="store_true", help=f"also write {RESULTS.name} under results/ (for the README)")
     args = p.parse_args(argv)
     lib = load_library(args.library)
     b = library.brackets(lib, metrics.TAUS)
-    print(table(b))
-    print(f"held-out word 4-grams shared with same-intent training responses: {b['heldout_4gram_overlap']:.3f}")
+    lines = [table(b), ""]
+    lines.append(
+        f"- Held-out word 4-grams shared with same-intent training responses: {b['heldout_4gram_overlap']:.3f}."
+    )
     mid = library.variant_midpoint(lib, metrics.TAUS)
     if mid:
-        print(
-            f"beside the brackets — a hedge on the {mid['tuples']} one-to-many tuples (midpoint of the two variants' "
-            "training means): " + ", ".join(f"succ@{t:.2f} {v:.3f}" for t, v in mid["success"].items())
+        lines.append(
+            f"- Beside the brackets, a hedge on the {mid['tuples']} one-to-many tuples (the midpoint of the two "
+            "variants' training means): "
+            + ", ".join(f"succ@{t:.2f} {v:.3f}" for t, v in mid["success"].items())
+            + ". A generator that averages a gesture's variants can pass the one-sample success metric; diversity "
+            "and coverage tell it apart from one that covers them."
         )
     bad = library.bracket_violations(b, metrics.TAU_RMS)
-    print(f"brackets at tau = {metrics.TAU_RMS}: " + ("all within the SPEC §3 ranges" if not bad else "; ".join(bad)))
+    lines.append(
+        f"- Brackets at tau = {metrics.TAU_RMS}: " + ("all within the SPEC §3 ranges." if not bad else "; ".join(bad))
+    )
+    text = "\n".join(lines)
+    print(text)
+    if args.write:
+        header = (
+            f"Brackets of the success metric on `{Path(lib.path).name}` (library {lib.meta.get('library_version', '?')}), "
+            "expected values over every replay (no sampling): `python -m experiments.references`."
+        )
+        write_atomic(RESULTS, header + "\n\n" + text + "\n")
+        print(f"wrote {RESULTS}")
     return 0 if not bad else 1
 
 

@@ -13,6 +13,7 @@ ROOT = Path(__file__).resolve().parent.parent
 START, END = "<!-- results:start -->", "<!-- results:end -->"
 SECTIONS = (
     ("ablation.md", "### Table II: ablation"),
+    ("references.md", "### The brackets of the success metric (experiments/references.py)"),
     (
         "fig4_tendons.png",
         "Generated commands vs the library reference for two held-out tuples (like the paper's Fig. 4):",
@@ -25,9 +26,13 @@ SECTIONS = (
     ("sweep_training.md", "### Generator options: EMA, flow-time sampling, guidance, few-step (sweep training)"),
     ("sweep_training_options.png", ""),
     ("sweep_training_nfe.png", ""),
+    ("physics_aware.md", "### Physics-aware fine-tuning settings (experiments/physics_aware.py)"),
+    ("ablation_folds.md", "### 4-fold cross-validation (experiments/ablation.py --folds 4)"),
     ("bench_sample.md", "### Speed: sampling and training (experiments/bench.py sample)"),
     ("bench_trunk.md", "### Speed: trunk physics, MJX vs native MuJoCo (experiments/bench.py trunk)"),
     ("bench_semantics.md", "### Semantic reduction (experiments/bench.py semantics)"),
+    ("semantics_confusion.png", ""),
+    ("bench_fuzz.md", "### Sampler fuzzing at scale (experiments/bench.py fuzz)"),
     ("bench_shard.md", "### Device mesh (experiments/bench.py shard)"),
 )
 
