@@ -13,12 +13,12 @@ ROOT = Path(__file__).resolve().parent.parent
 START, END = "<!-- results:start -->", "<!-- results:end -->"
 SECTIONS = (
     ("ablation.md", "### Table II: ablation"),
-    ("references.md", "### The brackets of the success metric (experiments/references.py)"),
     (
         "fig4_tendons.png",
         "Generated commands vs the library reference for two held-out tuples (like the paper's Fig. 4):",
     ),
     ("diversity.png", "Thirty samples of one tuple (emphatic embracing) per generator:"),
+    ("references.md", "### The brackets of the success metric (experiments/references.py)"),
     ("sweep_tau_rms.md", "### Success across tolerances (sweep tau_rms)"),
     ("sweep_tau_rms.png", ""),
     ("sweep_steps.md", "### Sampler steps (sweep steps)"),
