@@ -148,16 +148,7 @@ def run(cfg: AblationConfig, lib=None) -> dict:
     t_lib = time.perf_counter()  # the library simulated once: held-out references + the shape tolerance
     ref_backbone, tol = None, None
     if simulate:
-        lib_u = np.concatenate([lib.train.u, lib.heldout.u])
-        lib_backbone = sim.rollout(lib_u, engine=cfg.engine).backbone
-        ref_backbone = lib_backbone[len(lib.train) :]
-        tol = trunk_eval.calibrate(
-            lib_u,
-            lib_backbone,
-            np.concatenate([lib.train.intent, lib.heldout.intent]),
-            np.concatenate([lib.train.intensity, lib.heldout.intensity]),
-            cfg.tau,
-        )
+        ref_backbone, tol = trunk_eval.library_references(lib, cfg.tau, engine=cfg.engine)
         print(
             f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise "
             f"shape RMS, as tau = {cfg.tau} is of its actuation RMS (within-tuple median "

@@ -16,7 +16,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding import load_library, semantics, sim
+from jgrounding import load_library, semantics
 from jgrounding.evaluation import metrics
 from jgrounding.evaluation import physics as phys_eval
 from jgrounding.generators import methods
@@ -58,16 +58,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     seeds = tuple(int(s) for s in args.seeds.split(","))
     lib, emb = load_library(), semantics.intent_embeddings()
-    every = np.concatenate([lib.train.u, lib.heldout.u])
-    backbone = sim.rollout(every).backbone
-    tol = phys_eval.calibrate(
-        every,
-        backbone,
-        np.concatenate([lib.train.intent, lib.heldout.intent]),
-        np.concatenate([lib.train.intensity, lib.heldout.intensity]),
-        metrics.TAU_RMS,
-    )
-    ref = backbone[len(lib.train) :]
+    ref, tol = phys_eval.library_references(lib, metrics.TAU_RMS)
     rf = methods.train("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), intent_emb=emb, progress=False)
     lines = [
         f"Physics-aware fine-tuning of Tuple + Spline + RF ({len(seeds)} seeds, {args.steps} training steps), "

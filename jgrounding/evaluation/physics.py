@@ -101,6 +101,21 @@ def calibrate(
     )
 
 
+def library_references(lib, tau_rms: float, *, engine: str = "auto") -> tuple[np.ndarray, ShapeTolerance]:
+    """Simulate the whole library once: the held-out references' backbones and the shape tolerance.
+
+    Args:
+      lib: a :class:`jgrounding.library.Library`; tau_rms: the actuation tolerance (0.35).
+    Returns:
+      ``(reference backbones (N_heldout, T, P, 3), ShapeTolerance)`` from :func:`calibrate` over train + held-out.
+    """
+    u = np.concatenate([lib.train.u, lib.heldout.u])
+    backbone = sim.rollout(u, engine=engine).backbone
+    intent = np.concatenate([lib.train.intent, lib.heldout.intent])
+    intensity = np.concatenate([lib.train.intensity, lib.heldout.intensity])
+    return backbone[len(lib.train) :], calibrate(u, backbone, intent, intensity, tau_rms)
+
+
 def margins(u: np.ndarray, *, engine: str = "auto") -> np.ndarray:
     """Feasibility margin (:func:`jgrounding.sim.feasibility_margin`) of every trajectory ``u (B, T, 4)``,
     rolled out in chunks of :data:`CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible."""
