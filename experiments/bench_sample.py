@@ -148,7 +148,15 @@ def main(argv=None) -> int:
         f"| {what} | {pub:.3f} ms | {core:.3f} ms | {pub / core:.2f}x | {goal} |" for what, pub, core, goal in rows
     ]
     single50 = next(pub for what, pub, _, _ in rows if what == "RF euler S=50: single trajectory")
+    ho = lib.heldout
+    itself = {
+        s: latency.jg_sample_ms(ho.intent, ho.intensity, jax.random.key(1), steps=s, reps=args.reps) for s in (50, 1)
+    }
     lines += [
+        "",
+        f"`jg.sample(key, intent, intensity, steps=S)` itself, with its routing to the shipped model for S "
+        f"(`assets/checkpoints/shipped.json`) and checkpoint-cache lookup: S = 50 {itself[50]:.3f} ms "
+        f"({itself[50] / single50:.2f}x the public-path row above), S = 1 {itself[1]:.3f} ms (the 2-rectified model).",
         "",
         f"RF euler S=50 single trajectory: public {single50:.3f} ms vs the paper's "
         f"{PAPER_MS['tuple_spline_rf']} ms ({PAPER_MS['tuple_spline_rf'] / single50:.1f}x faster here).",

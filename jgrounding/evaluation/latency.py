@@ -67,6 +67,15 @@ def public_ms(
     return _median_ms(lambda k, m, z: model.sample(k, m, z, num_samples, sampler=sampler, steps=steps), calls)
 
 
+def jg_sample_ms(intent, intensity, key, *, steps: int = 50, reps: int = 200) -> float:
+    """Median warm wall time (ms) of ``jg.sample(key_i, intent[i % N], intensity[i % N], steps=steps)`` itself,
+    the shipped-model routing and checkpoint-cache lookup included; ``intent``, ``intensity``: ``(N,)`` indices."""
+    n = len(intent)
+    keys = list(jax.random.split(key, reps))
+    calls = [(keys[i], int(intent[i % n]), int(intensity[i % n])) for i in range(reps)]
+    return _median_ms(lambda k, m, z: sampling.sample(k, m, z, steps=steps), calls)
+
+
 def batch_ms(
     model: sampling.Model,
     intent,

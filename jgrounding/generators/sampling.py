@@ -301,13 +301,19 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
 
 
 @functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=4)
+def _shipped_manifest(path: Path) -> dict | None:
+    """The parsed shipped-model manifest, read once per process (not on every ``jg.sample`` call)."""
+    return json.loads(path.read_text()) if path.exists() else None
+
+
 def shipped_checkpoint(steps: int) -> Path:
     """The shipped checkpoint that serves ``steps`` best (:data:`SHIPPED`, chosen by
     ``python -m experiments.sweep training``): the few-step model of the smallest listed
     ``max_steps >= steps`` (e.g. a 2-rectified flow), else the default."""
-    if not SHIPPED.exists():
+    manifest = _shipped_manifest(SHIPPED)
+    if manifest is None:
         return DEFAULT_CHECKPOINT
-    manifest = json.loads(SHIPPED.read_text())
     fits = [e for e in manifest.get("few_step", []) if steps <= e["max_steps"]]
     name = min(fits, key=lambda e: e["max_steps"])["checkpoint"] if fits else manifest.get("default")
     return DEFAULT_CHECKPOINT.parent / name if name else DEFAULT_CHECKPOINT
