@@ -175,12 +175,14 @@ def run(args: argparse.Namespace) -> int:
         )
         hold = not g.confident and not args.force
         if not g.confident:
-            action = (
-                "holding still instead: " + HOLD_STILL + " (use --force to drive the tuple)"
-                if hold
-                else "driving it anyway (--force)"
+            action = HOLD_STILL + " (use --force to drive the tuple)" if hold else "driving it anyway (--force)"
+            why = g.reason or "low confidence"
+            say(
+                "warning",
+                f"holding still: {why}; {action}" if hold else f"warning: {why}; {action}",
+                reason=why,
+                hold_still=hold,
             )
-            say("warning", f"warning: low confidence ({g.reason}); {action}", reason=g.reason, hold_still=hold)
 
     t0 = time.perf_counter()
     kwargs = dict(

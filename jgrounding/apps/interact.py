@@ -95,11 +95,12 @@ def main(argv=None, stdin=None, stdout=None) -> int:
             except (ValueError, TypeError) as e:
                 print(f"error: {e}", file=stdout)
                 continue
-            flag = "" if g.confident else f"  (low confidence: {g.reason})"
+            flag = "" if g.confident else f"  (not acting: {g.reason or 'low confidence'})"
             print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
             if not g.confident and not args.force:
                 pending = g
-                print(f"   holding still: {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
+                why = g.reason or "low confidence"
+                print(f"   holding still ({why}): {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
                 stdout.flush()
                 continue
         pending = None

@@ -56,7 +56,8 @@ def test_cli_holds_still_below_threshold_unless_forced(tmp_path, capsys):
     from jgrounding.apps import cli
 
     assert cli.main(["jkl;", "--no-render", "--samples", "2", "--out", str(tmp_path / "a")]) == 0
-    assert "holding still" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "holding still: " + jg.ground("jkl;").reason in out  # the reason a person can read
     assert not np.load(tmp_path / "a" / "samples.npy").any()  # every tendon at rest: no motion
     assert cli.main(["jkl;", "--force", "--no-render", "--samples", "2", "--out", str(tmp_path / "b")]) == 0
     assert "driving it anyway" in capsys.readouterr().out
@@ -70,7 +71,7 @@ def test_interactive_loop_emits_no_motion_for_junk(tmp_path):
     interact.main(["--out", str(tmp_path)], stdin=io.StringIO("jkl;\n:history\n:force\n:quit\n"), stdout=out)
     text = out.getvalue()
     before_force = text.split("forcing")[0]
-    assert "holding still" in before_force and "tendons:" not in before_force
+    assert "holding still (" + jg.ground("jkl;").reason in before_force and "tendons:" not in before_force
     assert "(empty)" in before_force  # nothing was driven, so nothing entered the history
     assert "tendons:" in text.split("forcing")[1] and (tmp_path / "turn001.png").exists()
 
