@@ -75,11 +75,16 @@ def _time_features(grid: np.ndarray, embed_time):
     return feats.reshape(grid.shape + feats.shape[-1:]), lambda x, f: f
 
 
-def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None):
+def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None, known=None):
     """Eq. (rf_inference): integrate dc/dlambda = v from lambda = 0 (noise ``eps``) to 1 in ``steps``.
 
     ``velocity(x, t)`` with ``t`` of shape ``(B,)``; or, with ``embed_time``, ``velocity(x, f)`` with
     ``f = embed_time(t)`` precomputed for every step (see :func:`_time_features`).
+
+    ``known``: ``(mask (D,) or (B, D) bool, c_known (B, D))`` inpaints the masked coordinates of the data:
+    after every step (at flow time lambda) they are set to the straight path ``lambda c_known +
+    (1 - lambda) eps`` of the noise they started from, so at lambda = 1 they equal ``c_known`` exactly and
+    the other coordinates are generated consistent with them (start-conditioned sampling).
     """
     if sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(SAMPLERS)}")
@@ -87,7 +92,7 @@ def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time
     grid = (np.arange(steps)[:, None] + np.asarray(_RF_OFFSETS[sampler])[None]) * dt
     feats, as_input = _time_features(grid, embed_time)
 
-    def body(k, x):
+    def step(k, x):
         f = feats[k]
         v = lambda y, i: velocity(y, as_input(y, f[i]))
         if sampler == "euler":
@@ -100,7 +105,15 @@ def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time
         k4 = v(x + dt * k3, 2)
         return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
 
-    return jax.lax.fori_loop(0, steps, body, eps)
+    if known is None:
+        return jax.lax.fori_loop(0, steps, step, eps)
+    mask, c_known = known
+
+    def inpainted(k, x):
+        lam = (k + 1) * dt
+        return jnp.where(mask, lam * c_known + (1.0 - lam) * eps, step(k, x))
+
+    return jax.lax.fori_loop(0, steps, inpainted, eps)
 
 
 def ddpm_schedule(steps: int = DDPM_STEPS):
@@ -190,9 +203,10 @@ class _Flow:
             keep = keep.astype(jnp.float32)
         return key, lambda x, t: model(x, t, batch["cond"], batch["intensity"], keep)
 
-    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig):
+    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):
         """Integrate from noise ``eps = N(key) (B, D)``; guidance w: v = v_c + w (v_c - v_null), the
-        conditional and null rows through the network as one batch."""
+        conditional and null rows through the network as one batch. ``known``: coordinates fixed by
+        inpainting (:func:`rf_sample`; rectified flow only)."""
         b = cond.shape[0]
         eps = jax.random.normal(key, (b, dim))
         # What does not change across flow steps is computed once, before the sampler's loop: the
@@ -207,6 +221,8 @@ class _Flow:
                 return v[:b] + w * (v[:b] - v[b:])
         else:
             net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)
+        if known is not None:
+            return self._integrate(net, eps, key, config, model.time_context, known=known)
         return self._integrate(net, eps, key, config, model.time_context)
 
 
@@ -220,9 +236,9 @@ class RectifiedFlow(_Flow):
         return rf_loss(net, batch["target"], key, time_sampler=config.time_sampler, noise=batch.get("noise"))
 
     @staticmethod
-    def _integrate(net, eps, key, config: SampleConfig, embed_time):
+    def _integrate(net, eps, key, config: SampleConfig, embed_time, known=None):
         del key  # the ODE is deterministic given eps
-        return rf_sample(net, eps, steps=config.steps, sampler=config.sampler, embed_time=embed_time)
+        return rf_sample(net, eps, steps=config.steps, sampler=config.sampler, embed_time=embed_time, known=known)
 
 
 class DDPM(_Flow):

@@ -417,20 +417,49 @@ def actuation(
     num_controls: int = 4,
     num_tendons: int = 4,
     guidance: float = 0.0,
+    start=None,
 ):
     """Ungated actuation for a batch of conditions: the generator's sample (normalized controls or
     trajectory), decoded to [0, 1], and the spline reconstruction u = R(c) for spline methods.
 
     Args:
       cond: condition embeddings ``(B, 384)``; intensity: ``(B,)`` int32; key: one key for the batch.
+      start: ``(B, N_u)`` commands in [0, 1] or None. Given, the first Catmull-Rom control column is fixed
+        to it by inpainting during the flow integration (:func:`flows.rf_sample`), so ``u[:, 0] == start``
+        and the rest of the motion is generated from that state (:func:`check_start_conditioning`).
     Returns:
       u ``(B, 150, N_u)``, not yet through the safety gate (:func:`sample_one` and the public sampler gate it).
     """
     s = spec(method)
     model = nnx.merge(graphdef, params)
     dim = num_tendons * s.representation.length(num_controls)
-    y = _decode(s.generator.sample(model, cond, intensity, key, dim, SampleConfig(sampler, steps, guidance)))
-    return s.representation.actuation(y, s.generator.sequence, num_tendons, num_controls)
+    config = SampleConfig(sampler, steps, guidance)
+    if start is None:
+        y = s.generator.sample(model, cond, intensity, key, dim, config)
+    else:
+        check_start_conditioning(method)
+        # Flat layout of the targets: (N_u, P) row-major, so tendon j's first control is coordinate j * P.
+        mask = (jnp.arange(dim) % num_controls) == 0
+        first = jnp.repeat(_encode(jnp.asarray(start, jnp.float32)), num_controls, axis=-1)  # (B, D)
+        y = s.generator.sample(model, cond, intensity, key, dim, config, known=(mask, first))
+    return s.representation.actuation(_decode(y), s.generator.sequence, num_tendons, num_controls)
+
+
+def check_start_conditioning(method: str) -> None:
+    """``ValueError`` unless ``method`` can sample from a given start (a rectified flow over spline controls)."""
+    s = spec(method)
+    if not (
+        isinstance(s.generator, RectifiedFlow) and isinstance(s.representation, Spline) and not s.generator.sequence
+    ):
+        capable = ", ".join(
+            n
+            for n, m in REGISTRY.items()
+            if isinstance(m.generator, RectifiedFlow) and isinstance(m.representation, Spline)
+        )
+        raise ValueError(
+            f"start-conditioned sampling inpaints the first spline control of a rectified flow; {method} is not "
+            f"one (methods that can: {capable}); use the default blend (start_conditioned=False) instead"
+        )
 
 
 def sample_one(

@@ -66,16 +66,18 @@ class Model:
         self._zero = jax.device_put(np.int32(0))
         self._rest = jax.device_put(np.zeros(trained.num_tendons, np.float32))
 
-    def program(self, sampler: str, steps: int, bucket: int, continuity: bool = True):
+    def program(self, sampler: str, steps: int, bucket: int, continuity: bool = True, start: bool = False):
         """Gated ``(current (N_u,), intent (B,), intensity (B,), first (), key) -> u (B, 150, N_u)`` float32
         numpy, B = bucket, blended in from the robot's ``current`` command (without ``continuity``: no
         ``current`` argument, first step as the model made it); row ``i`` draws its noise from
-        ``fold_in(key, first + i)``."""
+        ``fold_in(key, first + i)``. With ``start`` (start-conditioned): ``(current, current, intent, ...)``,
+        the second ``current`` fixing the first spline control (:func:`methods.actuation`)."""
         cache_key = (sampler, steps, bucket) if continuity else (sampler, steps, bucket, "no-current")
+        cache_key = (*cache_key, "start") if start else cache_key
         if cache_key not in self._programs:
             tr, params, emb = self.trained, self._params, self._emb
 
-            def row(intent, intensity, key):  # one trajectory; params and embeddings are constants
+            def row(intent, intensity, key, u0=None):  # one trajectory; params and embeddings are constants
                 return methods.actuation(
                     tr.method,
                     tr.graphdef,
@@ -88,14 +90,16 @@ class Model:
                     num_controls=tr.num_controls,
                     num_tendons=tr.num_tendons,
                     guidance=self.guidance,
+                    start=None if u0 is None else u0[None],
                 )[0]
 
-            def run(intent, intensity, first, key):
+            def run(intent, intensity, first, key, u0=None):
                 TRACES[(self.name, *cache_key)] += 1  # Python side effect: counts traces, not calls
                 keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(first + jnp.arange(bucket, dtype=jnp.int32))
-                return jax.vmap(row)(intent, intensity, keys)
+                return jax.vmap(lambda m, z, k: row(m, z, k, u0))(intent, intensity, keys)
 
-            self._programs[cache_key] = safety.gated(run, continuity=continuity)
+            fn = (lambda u0, *args: run(*args, u0=u0)) if start else run
+            self._programs[cache_key] = safety.gated(fn, continuity=continuity)
         return self._programs[cache_key]
 
     def _current(self, current):
@@ -130,11 +134,20 @@ class Model:
         sampler: str | None = None,
         steps: int = 50,
         current=safety.REST,
+        start_conditioned: bool = False,
     ) -> np.ndarray:
         """:func:`sample` for this model (same arguments, shapes and errors)."""
         sampler, steps = self._check(num_samples, sampler, steps)
         key = as_key(key)
         prefix, continuity = self._current(current)
+        if start_conditioned is not False:
+            if start_conditioned is not True:
+                raise ValueError(f"start_conditioned must be True or False, got {start_conditioned!r}")
+            if not continuity:
+                raise ValueError("start_conditioned=True needs the robot's current command (current='rest' or (N_u,))")
+            methods.check_start_conditioning(self.trained.method)
+            prefix = prefix * 2  # the gate's current, then the inpainted first control
+        start = bool(start_conditioned)
         ms, zs = _sequence(intent), _sequence(intensity)
         if ms is None and zs is None:
             m, z = _intent(intent), _intensity(intensity)
@@ -143,12 +156,20 @@ class Model:
                 if args is None:
                     self._check_covered([m], [z])
                     args = self._single[(m, z)] = jax.device_put((np.array([m], np.int32), np.array([z], np.int32)))
-                return self.program(sampler, steps, 1, continuity)(*prefix, *args, self._zero, key)[0]
+                return self.program(sampler, steps, 1, continuity, start)(*prefix, *args, self._zero, key)[0]
             return self._run(
-                key, np.array([m], np.int32), np.array([z], np.int32), num_samples, sampler, steps, prefix, continuity
+                key,
+                np.array([m], np.int32),
+                np.array([z], np.int32),
+                num_samples,
+                sampler,
+                steps,
+                prefix,
+                continuity,
+                start,
             )[0]
         m, z = _indices(ms, zs, intent, intensity)
-        return self._run(key, m, z, num_samples, sampler, steps, prefix, continuity)
+        return self._run(key, m, z, num_samples, sampler, steps, prefix, continuity, start)
 
     def _check_covered(self, ms, zs) -> None:
         if self.covered is None:
@@ -161,7 +182,7 @@ class Model:
                     f"{INTENSITIES[z]}); its tuples: {names}"
                 )
 
-    def _run(self, key, m, z, k, sampler, steps, prefix=(), continuity=False) -> np.ndarray:
+    def _run(self, key, m, z, k, sampler, steps, prefix=(), continuity=False, start_conditioned=False) -> np.ndarray:
         """``(N, K, 150, N_u)`` for index arrays ``m, z (N,)``, in chunks of at most the largest bucket."""
         self._check_covered(m, z)
         total = len(m) * k
@@ -178,7 +199,7 @@ class Model:
             bucket = next(b for b in BUCKETS if b >= n)
             pad = bucket - n
             cm, cz = np.pad(rows_m[start : start + n], (0, pad)), np.pad(rows_z[start : start + n], (0, pad))
-            out[start : start + n] = self.program(sampler, steps, bucket, continuity)(
+            out[start : start + n] = self.program(sampler, steps, bucket, continuity, start_conditioned)(
                 *prefix, cm, cz, np.int32(start), key
             )[:n]
         return out.reshape(len(m), k, methods.T, n_u)
@@ -338,6 +359,7 @@ def sample(
     steps: int = 50,
     checkpoint: str | Path | None = None,
     current=safety.REST,
+    start_conditioned: bool = False,
     screen: bool = False,
     allow_library_mismatch: bool = False,
 ) -> np.ndarray:
@@ -355,6 +377,12 @@ def sample(
         command in [0, 1] (e.g. the last step of the previous response), or None. The trajectories blend
         in from it within the slew bound (:mod:`jgrounding.safety`, guarantee 4), so consecutive
         responses never jump; None returns the model's own first step (what evaluation compares).
+      start_conditioned: instead of blending in from ``current``, generate the motion from it: the first
+        Catmull-Rom control is fixed to ``current`` by inpainting during the flow integration (known
+        coordinates set to ``lambda * current + (1 - lambda) * eps`` at every flow time lambda), so the
+        trajectory starts exactly at ``current`` (``u[0] == current``) and the model shapes the rest from
+        there; still gated (bounds, slew limit from ``current``). Needs ``current`` (not None) and a
+        rectified flow over spline controls (the shipped models); ``ValueError`` otherwise.
       screen: simulate candidates on the trunk and return only feasible ones (:func:`screened`, which also
         reports how many were rejected); raises :class:`ScreeningError` if too few pass within its budget.
       allow_library_mismatch: use a checkpoint trained on another library version (refused otherwise).
@@ -381,13 +409,21 @@ def sample(
             steps=steps,
             checkpoint=checkpoint,
             current=current,
+            start_conditioned=start_conditioned,
             allow_library_mismatch=allow_library_mismatch,
         ).u
     if checkpoint is None and isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
         checkpoint = shipped_checkpoint(int(steps))
         checkpoint = None if checkpoint == DEFAULT_CHECKPOINT else checkpoint
     return model(checkpoint, allow_library_mismatch).sample(
-        key, intent, intensity, num_samples, sampler=sampler, steps=steps, current=current
+        key,
+        intent,
+        intensity,
+        num_samples,
+        sampler=sampler,
+        steps=steps,
+        current=current,
+        start_conditioned=start_conditioned,
     )
 
 
