@@ -121,7 +121,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--checkpoint",
         metavar="DIR",
         help="sample from this checkpoint (e.g. one trained on your own "
-        "library with experiments.train --library; default: the shipped one)",
+        "library with experiments.train --library; default: the shipped one); grounding then chooses "
+        "among the checkpoint's tuples",
+    )
+    p.add_argument(
+        "--units",
+        choices=("normalized", "lab"),
+        default="normalized",
+        help="units of commands.csv/json: normalized pull in [0, 1] (default) or, for a checkpoint trained "
+        "on an imported library, the lab's own units from the import's limits",
     )
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--quiet", action="store_true", help="print only the output folder")
@@ -153,15 +161,27 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
+    from jgrounding.apps import own
+
+    info = own.import_info(args.checkpoint)
+    if args.units == "lab" and info is None:
+        raise ValueError(
+            f"--units lab needs a checkpoint trained on an imported library (its card holds the limits); "
+            f"--checkpoint {args.checkpoint} has none"
+        )
     if args.intent is not None:
         intent, intensity = args.intent, args.intensity or "moderate"
-        say("tuple", f"tuple: ({intent}, {intensity}) [given]", intent=intent, intensity=intensity)
+        given = "[given]" if args.intensity else "[intent given; intensity not given: the default 'moderate']"
+        say("tuple", f"tuple: ({intent}, {intensity}) {given}", intent=intent, intensity=intensity)
         confidence, hold = None, False
     else:
         from jgrounding.semantics import HOLD_STILL, ground
 
         t0 = time.perf_counter()
         g = ground(args.text, backend=args.backend)
+        g, note = own.restrict(g, args.checkpoint)  # the checkpoint's tuples only
+        if note:
+            say("restricted", f"note: {note}", note=note)
         intent, intensity, confidence = g.intent, g.intensity, float(g.confidence)
         say(
             "tuple",
@@ -248,13 +268,26 @@ def run(args: argparse.Namespace) -> int:
         confidence=confidence,
         **({"hold_still": True} if hold else {}),
     )
+    title = (
+        f"holding still at the current command (grounded {intent} / {intensity}, not confident)"
+        if hold
+        else f"{intent} / {intensity}"
+    )
+    own_stream = {
+        "channels": info["channels"] if info else None,
+        "limits": info["limits"] if info and args.units == "lab" else None,
+    }
     files = {
-        "tendons": plotting.tendon_figure(u, out / "tendons.png", title=f"{intent} / {intensity}"),
+        "tendons": plotting.tendon_figure(u, out / "tendons.png", title=title, labels=own_stream["channels"]),
         "csv": str(
-            write_atomic(out / "commands.csv", export.command_stream_csv(u[0], control_dt=CONTROL_DT, meta=meta))
+            write_atomic(
+                out / "commands.csv", export.command_stream_csv(u[0], control_dt=CONTROL_DT, meta=meta, **own_stream)
+            )
         ),
         "json": str(
-            write_atomic(out / "commands.json", export.command_stream_json(u[0], control_dt=CONTROL_DT, meta=meta))
+            write_atomic(
+                out / "commands.json", export.command_stream_json(u[0], control_dt=CONTROL_DT, meta=meta, **own_stream)
+            )
         ),
     }
     buf = __import__("io").BytesIO()

@@ -12,7 +12,10 @@ A grounding below the calibrated confidence threshold does not drive the trunk: 
 Each turn's trajectory continues from where the last one left the robot (the first from rest): the gate
 blends it in within the slew bound, so the command stream never jumps between responses. The stream
 sent so far (every turn's sample 0, in order) is saved as ``stream.npy`` in the output folder.
-``--screen`` keeps only candidates that the simulated trunk finds feasible.
+``--screen`` keeps only candidates that the simulated trunk finds feasible. ``--checkpoint DIR`` samples
+from your own model (``experiments.train --library``): grounding then chooses among its tuples and says so
+when a text asks for one it never learned. ``:quit``, end of input (Ctrl-D) and Ctrl-C end the loop cleanly:
+the trunk is brought back to rest within the slew bound and that ramp is saved with the stream.
 """
 
 from __future__ import annotations
@@ -21,7 +24,21 @@ import argparse
 import sys
 from pathlib import Path
 
-HELP = __doc__.split("\n\n", 1)[1]
+PROMPT = "jg> "
+HELP = """\
+Type a response plan, e.g.  User seems sad; respond calmly
+  -> the grounded (intent, intensity) tuple, 8 sampled trajectories and a tendon plot (turnNNN.png).
+obs: <scene> | <what the user said>
+  -> asks the MLLM for a response first (needs JGROUNDING_MLLM_URL), then grounds it.
+Commands:
+  :help      this text
+  :history   the tuples driven so far
+  :render    the simulated motion of the last turn (motion GIF)
+  :force     drive the last grounding that was held back for low confidence
+  :quit      end (so do Ctrl-D and Ctrl-C); the trunk is brought back to rest
+A grounding below the confidence threshold does not move the trunk: it holds still at its current
+command, unless you type :force (or started with --force).
+Each turn continues from where the last one left the trunk; the stream so far is in stream.npy."""
 
 
 def main(argv=None, stdin=None, stdout=None) -> int:
@@ -32,26 +49,81 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--screen", action="store_true", help="keep only samples feasible on the simulated trunk")
     p.add_argument("--force", action="store_true", help="drive groundings below the confidence threshold too")
+    p.add_argument(
+        "--checkpoint",
+        metavar="DIR",
+        help="sample from this checkpoint (e.g. your own, from experiments.train --library); "
+        "grounding then chooses among its tuples",
+    )
     args = p.parse_args(argv)
+    if args.checkpoint is not None and not Path(args.checkpoint, "meta.json").is_file():
+        p.error(f"--checkpoint {args.checkpoint!r} is not a checkpoint directory (no meta.json in it)")
 
-    import jax
+    state = {"current": "rest", "stream": []}
+    try:
+        return _loop(args, stdin, stdout, state)
+    except KeyboardInterrupt:
+        print("\n(interrupted)", file=stdout)
+        return _to_rest(args, stdout, state)
+    finally:
+        stdout.flush()
+
+
+def _save_stream(out: Path, stream) -> Path:
+    import io
+
     import numpy as np
 
-    from jgrounding.apps import plotting
-    from jgrounding.generators import sampling
     from jgrounding.io import write_atomic
+
+    buf = io.BytesIO()
+    np.save(buf, np.concatenate(stream))
+    return write_atomic(out / "stream.npy", buf.getvalue())
+
+
+def _to_rest(args, stdout, state) -> int:
+    """End of the session: ramp from the trunk's last command back to rest within the slew bound."""
+    import numpy as np
+
+    from jgrounding import safety
+
+    current = state["current"]
+    if isinstance(current, str) or not np.any(np.asarray(current) > 0):
+        print("the trunk is at rest; bye", file=stdout)
+        return 0
+    ramp = safety.emit(
+        np.zeros((safety.BLEND_STEPS + 1, len(current)), np.float32), num_channels=len(current), current=current
+    )
+    state["stream"].append(ramp)
+    state["current"] = "rest"
+    path = _save_stream(Path(args.out), state["stream"])
+    print(f"trunk brought back to rest over {len(ramp)} steps (slew-limited); stream saved to {path}; bye", file=stdout)
+    return 0
+
+
+def _loop(args, stdin, stdout, state) -> int:
+    import jax
+
+    from jgrounding.apps import own, plotting
+    from jgrounding.generators import sampling
     from jgrounding.semantics import HOLD_STILL, ground
-    from jgrounding.sim import render
 
     out = Path(args.out)
     history: list[tuple[str, str]] = []
     last = None
-    current = "rest"  # the robot's command when the session starts
-    stream = []
+    stream = state["stream"]
     pending = None  # a low-confidence grounding held back, for :force
     turn = 0
-    print("jgrounding interactive: type a response, 'obs: scene | utterance', or :help", file=stdout)
-    for line in stdin:
+    info = own.import_info(args.checkpoint)
+    labels = info["channels"] if info else None
+    model = f"checkpoint {args.checkpoint}" if args.checkpoint else "the shipped model"
+    print(f"jgrounding interactive ({model}): type a response, 'obs: scene | utterance', or :help", file=stdout)
+    while True:
+        print(PROMPT, end="", file=stdout, flush=True)
+        line = stdin.readline()
+        if not line:  # end of input (Ctrl-D)
+            print(file=stdout)
+            break
         line = line.strip()
         if not line:
             continue
@@ -66,7 +138,13 @@ def main(argv=None, stdin=None, stdout=None) -> int:
         if line == ":render":
             if last is None:
                 print("nothing to render yet", file=stdout)
+            elif last.shape[-1] != 4:
+                print(
+                    f"render skipped: the simulator is the 4-tendon trunk, this model has {last.shape[-1]}", file=stdout
+                )
             else:
+                from jgrounding.sim import render
+
                 print(f"motion: {render.render_motion(last, out / f'turn{turn:03d}.gif')}", file=stdout)
             continue
         if line.startswith(":") and line != ":force":
@@ -95,36 +173,42 @@ def main(argv=None, stdin=None, stdout=None) -> int:
             except (ValueError, TypeError) as e:
                 print(f"error: {e}", file=stdout)
                 continue
-            flag = "" if g.confident else f"  (not acting: {g.reason or 'low confidence'})"
+            g, note = own.restrict(g, args.checkpoint)
+            if note:
+                print(f"   note: {note}", file=stdout)
+            flag = "" if g.confident else f"  (low confidence: {g.reason})"
             print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
             if not g.confident and not args.force:
                 pending = g
-                why = g.reason or "low confidence"
-                print(f"   holding still ({why}): {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
+                print(f"   holding still: {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
                 stdout.flush()
                 continue
         pending = None
         turn += 1
         history.append((g.intent, g.intensity))
         key = jax.random.fold_in(jax.random.key(args.seed), turn)
-        if args.screen:
-            res = sampling.screened(key, g.intent, g.intensity, num_samples=8, current=current)
-            u = res.u
-            print(f"   screened: {res.rejected} of {res.candidates} candidates rejected as infeasible", file=stdout)
-        else:
-            u = sampling.sample(key, g.intent, g.intensity, num_samples=8, current=current)
+        kw = dict(num_samples=8, current=state["current"], checkpoint=args.checkpoint)
+        try:
+            if args.screen:
+                res = sampling.screened(key, g.intent, g.intensity, **kw)
+                u = res.u
+                print(f"   screened: {res.rejected} of {res.candidates} candidates rejected as infeasible", file=stdout)
+            else:
+                u = sampling.sample(key, g.intent, g.intensity, **kw)
+        except ValueError as e:
+            print(f"error: {e}", file=stdout)
+            continue
         last = u[0]
-        current = last[-1]  # the next response starts from where this one leaves the robot
+        state["current"] = last[-1]  # the next response starts from where this one leaves the robot
         stream.append(last)
-        buf = __import__("io").BytesIO()
-        np.save(buf, np.concatenate(stream))
-        write_atomic(out / "stream.npy", buf.getvalue())
+        _save_stream(out, stream)
+        title = f"{g.intent} / {g.intensity}"
         print(
-            f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=f'{g.intent} / {g.intensity}')}",
+            f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=title, labels=labels)}",
             file=stdout,
         )
         stdout.flush()
-    return 0
+    return _to_rest(args, stdout, state)
 
 
 if __name__ == "__main__":

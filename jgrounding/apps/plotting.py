@@ -15,13 +15,17 @@ TENDON_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:orange")
 TENDON_LABELS = ("tendon 0 (toward user)", "tendon 1 (left)", "tendon 2 (away)", "tendon 3 (right)")
 
 
-def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = True, lw: float = 1.6):
-    """Draw tendon commands ``(T, N_u)`` or samples ``(K, T, N_u)`` on ``ax``; reference dashed."""
+def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = True, lw: float = 1.6, labels=None):
+    """Draw tendon commands ``(T, N_u)`` or samples ``(K, T, N_u)`` on ``ax``; reference dashed.
+
+    ``labels``: one legend name per tendon (default: the built-in trunk's layout for 4 tendons, else
+    ``tendon j``; pass an imported library's channel names for a lab's own trunk)."""
     u = np.asarray(u)
     samples = u[None] if u.ndim == 2 else u
     tau = np.linspace(0.0, 1.0, samples.shape[-2])
     colors = TENDON_COLORS if samples.shape[-1] == 4 else [f"C{j}" for j in range(samples.shape[-1])]
-    labels = TENDON_LABELS if samples.shape[-1] == 4 else [f"tendon {j}" for j in range(samples.shape[-1])]
+    if labels is None:
+        labels = TENDON_LABELS if samples.shape[-1] == 4 else [f"tendon {j}" for j in range(samples.shape[-1])]
     for k, s in enumerate(samples):
         for j in range(s.shape[-1]):
             ax.plot(tau, s[:, j], color=colors[j], alpha=alpha, lw=lw, label=labels[j] if (legend and k == 0) else None)
@@ -57,16 +61,17 @@ def save(fig, path: str | os.PathLike, dpi: int = 110, colors: int | None = None
     return str(path)
 
 
-def tendon_figure(u, path, *, title: str = "", reference=None):
-    """One-panel PNG of tendon commands (samples overlaid faintly when ``u`` is ``(K, T, 4)``)."""
+def tendon_figure(u, path, *, title: str = "", reference=None, labels=None):
+    """One-panel PNG of tendon commands (samples overlaid faintly when ``u`` is ``(K, T, 4)``); ``labels``:
+    as :func:`plot_tendons`."""
     u = np.asarray(u)
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     if u.ndim == 3 and u.shape[0] > 1:
         plot_tendons(ax, u[1:], alpha=0.18, legend=False, lw=0.8)
-        plot_tendons(ax, u[0], reference=reference)
+        plot_tendons(ax, u[0], reference=reference, labels=labels)
         title = f"{title}: sample 0 (bold) and {u.shape[0] - 1} more (faint)" if title else title
     else:
-        plot_tendons(ax, u.reshape(-1, *u.shape[-2:])[0], reference=reference)
+        plot_tendons(ax, u.reshape(-1, *u.shape[-2:])[0], reference=reference, labels=labels)
     # Below the axes, so that it never hides a curve.
     ax.legend(fontsize=7, ncol=4, loc="upper center", bbox_to_anchor=(0.5, -0.17), frameon=False)
     ax.set_title(title, fontsize=9)

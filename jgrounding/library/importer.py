@@ -551,6 +551,7 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         "source": "import",
         "config": {**dataclasses.asdict(config), "limits": [list(p) for p in config.limits]},
         "num_tendons": config.num_tendons,
+        "channels": list(recs[0].columns),  # the tendon columns' names, in the order of the limits
         "num_steps": NUM_STEPS,
         "num_controls": int(controls.shape[-1]),
         "reduced": config.num_controls is not None,

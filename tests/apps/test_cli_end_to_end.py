@@ -157,6 +157,7 @@ def test_interactive_stream_of_responses_never_exceeds_the_slew_bound(tmp_path):
     said = "Wave hello to the user!\nShake your trunk: no!\nCurl up shyly.\nCelebrate wildly!\n:quit\n"
     interact.main(["--out", str(tmp_path)], stdin=io.StringIO(said), stdout=io.StringIO())
     stream = np.load(tmp_path / "stream.npy")  # every turn's command, in order, as sent to the robot
-    assert stream.shape == (4 * 150, 4)
+    assert stream.shape == (4 * 150 + safety.BLEND_STEPS + 1, 4)  # 4 turns, then the ramp back to rest
+    assert not stream[-1].any()
     steps = np.abs(np.diff(np.concatenate([np.zeros((1, 4)), stream]), axis=0))  # from rest, across turns
     assert steps.max() <= safety.MAX_SLEW + 1e-6
