@@ -457,7 +457,8 @@ def screened(
       key, intent, intensity, num_samples, **sample_kwargs: as :func:`sample` (``sampler``, ``steps``,
         ``checkpoint``, ``current``). The candidates are the trajectories that would be emitted, blended in
         from ``current``; they are simulated from the trunk at rest (exact for the default ``"rest"``).
-      budget: candidates per tuple at most (default ``max(SCREEN_BUDGET, 4 * num_samples)``).
+      budget: candidates per tuple at most (default ``max(SCREEN_BUDGET, 4 * num_samples)``, capped at
+        ``MAX_SAMPLES``).
       engine: :func:`jgrounding.sim.rollout` engine (``auto``: native on CPU, MJX on an accelerator).
     Returns:
       :class:`Screened`: ``u`` shaped as :func:`sample` returns it, the candidates simulated, how many
@@ -475,14 +476,16 @@ def screened(
         or not 1 <= num_samples <= MAX_SAMPLES
     ):
         raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
-    budget = max(SCREEN_BUDGET, 4 * int(num_samples)) if budget is None else budget
-    if (
+    if budget is None:  # the default never exceeds the cap, so only a user's own budget= can be refused
+        budget = min(MAX_SAMPLES, max(SCREEN_BUDGET, 4 * int(num_samples)))
+    elif (
         isinstance(budget, bool)
         or not isinstance(budget, (int, np.integer))
         or not num_samples <= budget <= MAX_SAMPLES
     ):
         raise ValueError(
-            f"budget must be an integer in num_samples..{MAX_SAMPLES} (candidates per tuple), got {budget!r}"
+            f"budget must be an integer in num_samples..{MAX_SAMPLES} (here {num_samples}..{MAX_SAMPLES}: "
+            f"candidates per tuple), got {budget!r}"
         )
     engine = sim.resolve_engine(engine)
     key = as_key(key)
