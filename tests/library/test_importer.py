@@ -186,7 +186,7 @@ def test_screening_rejection_is_named_in_the_split_error(tmp_path):
     rng = np.random.default_rng(1)  # sensor noise: third differences far above the smoothness bound
     x = 2.0 + 10.0 * np.clip(0.5 + 0.05 * rng.standard_normal((120, 4)), 0, 1)
     (folder / "greeting_emphatic_1.csv").write_text(
-        "time,a,b,c,d\n"
+        "time,pull_0,pull_1,pull_2,pull_3\n"
         + "".join(f"{0.04 * i:.3f}," + ",".join(f"{v:.4f}" for v in row) + "\n" for i, row in enumerate(x))
     )
     with pytest.raises(DemonstrationError, match=r"rejected by screening: greeting_emphatic_1.csv \(.*smooth\)"):
@@ -199,12 +199,12 @@ def test_drop_invalid_keeps_going_and_lists_everything_dropped(tmp_path, capsys)
     edit_line(folder / "nodding_moderate_1.csv", 4, "0.040,5,5,5,5")
     (folder / "manifest.csv").write_text((folder / "manifest.csv").read_text() + "ghost.csv,nodding,subtle,\n")
     out = tmp_path / "lib.npz"
-    assert (
-        importer.main(
-            ["import", str(folder), "--out", str(out), "--limits", "2:12", "--tendons", "4", "--drop-invalid"]
-        )
-        == 0
-    )
+    argv = ["import", str(folder), "--out", str(out), "--limits", "2:12", "--tendons", "4", "--drop-invalid"]
+    assert importer.main(argv) == 1  # 4 of 7 files left out: more than the default --max-dropped 0.2
+    err = capsys.readouterr().err
+    assert "4 of 7 file(s) not imported (57%" in err and "more than --max-dropped 0.2 (20%)" in err
+    assert "nodding_moderate_0.csv line 5, column 'pull_0': NaN" in err and not out.exists()
+    assert importer.main(argv + ["--max-dropped", "0.6"]) == 0
     card = json.loads(out.with_suffix(".json").read_text())
     reasons = [d["reason"] for d in card["dropped"]]
     assert len(reasons) == 4  # NaN, duplicate stamp, missing file, and then nodding/moderate has one left
