@@ -97,7 +97,13 @@ def _as_real_array(x, name: str, shape: str) -> jax.Array:
 
 
 def reconstruct(c, num_steps: int = NUM_STEPS) -> jax.Array:
-    """Eq. (reconstruction): controls ``(..., N_u, P)`` -> actuation ``(..., T, N_u)``."""
+    """Eq. (reconstruction): controls ``(..., N_u, P)`` -> actuation ``(..., T, N_u)``.
+
+    Not gated: Catmull-Rom interpolates its controls and can overshoot between them, so controls in [0, 1]
+    can give actuation slightly outside [0, 1] (e.g. 1.02). Pass the result through
+    :func:`jgrounding.safety.make_safe` (or :func:`jgrounding.safety.emit`) before it drives a trunk or
+    serves as ``current=``; :func:`jgrounding.sample` already returns gated actuation.
+    """
     c = _as_real_array(c, "controls", "(..., N_u, P)")
     if c.ndim < 2:
         raise ValueError(f"controls must have shape (..., N_u, P), got {c.shape}")
