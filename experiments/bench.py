@@ -1,4 +1,4 @@
-"""Benchmarks, one sub-command per stage: `python -m experiments.bench {trunk,sample,semantics,shard,all}`.
+"""Benchmarks, one sub-command per stage: `python -m experiments.bench {trunk,sample,semantics,shard,fuzz,serve,all}`.
 
 Each sub-command lives in its own module (`experiments/bench_<name>.py`) with a `main(argv)`;
 every figure is printed beside its reference in the same run, as a ratio.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-COMMANDS = ("trunk", "sample", "semantics", "shard", "fuzz")
+COMMANDS = ("trunk", "sample", "semantics", "shard", "fuzz", "serve")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -165,6 +165,9 @@ class Stream:
         self.stats: dict | None = None
         self._pending: dict[int, str] = {}
         self._count = 0
+        # Ticks that arrived while the stream request was being answered come first.
+        self._backlog = [m for m in client.events if m.get("type") == "tick"]
+        client.events[:] = [m for m in client.events if m.get("type") != "tick"]
 
     def respond(self, text: str | None = None, *, intent=None, intensity="moderate", **options) -> int:
         """Ask for a new response without waiting (the stream keeps ticking); its reply lands in
@@ -192,7 +195,7 @@ class Stream:
 
     def __iter__(self):
         while self.stats is None:
-            msg = self.client.receive()
+            msg = self._backlog.pop(0) if self._backlog else self.client.receive()
             if msg.get("type") != "tick":
                 self._other(msg)
                 continue

@@ -654,6 +654,7 @@ class Stream:
         n = self.policy.num_tendons
         self.tick = 0
         self.plan_start, self.plan = 0, np.zeros((1, n), np.float32)
+        self.queued: tuple | None = None  # (start tick, plan, state) waiting for its tick
         self.state = "rest"
         self.seq = 0
         self.stall_s, self.steps = stall_s, steps
@@ -679,12 +680,23 @@ class Stream:
         self.last_heard = time.monotonic()
 
     def command_at(self, tick: int) -> np.ndarray:
-        i = tick - self.plan_start
-        return self.plan[min(max(i, 0), len(self.plan) - 1)]
+        """The command the stream executes at ``tick`` (>= the current tick), the queued plan included."""
+        if self.queued is not None and tick >= self.queued[0]:
+            start, plan = self.queued[0], self.queued[1]
+        else:
+            start, plan = self.plan_start, self.plan
+        return plan[min(max(tick - start, 0), len(plan) - 1)]
 
     def replace_plan(self, start_tick: int, plan: np.ndarray, state: str) -> None:
-        self.plan_start, self.plan, self.state = start_tick, np.asarray(plan, np.float32), state
+        """From ``start_tick`` on, execute ``plan`` (its first command is the one the stream would have
+        executed then); until then the current plan goes on."""
+        self.queued = (start_tick, np.asarray(plan, np.float32), state)
         self.stats.seam(start_tick)
+
+    def _advance(self) -> None:
+        if self.queued is not None and self.tick >= self.queued[0]:
+            self.plan_start, self.plan, self.state = self.queued
+            self.queued = None
 
     def stop(self) -> None:
         if not self.stopping:
@@ -771,6 +783,7 @@ class Stream:
                 ):
                     s = self.tick
                     self.replace_plan(s, glide_to_rest(self.command_at(s)), "glide-stalled")
+                self._advance()
                 u = self.command_at(self.tick)
                 self.stats.add(self.tick, u)
                 i = self.tick - self.plan_start
@@ -789,7 +802,7 @@ class Stream:
                         mujoco.mj_step(model, data)
                     msg["backbone"] = data.sensordata[: 3 * NUM_POINTS].reshape(NUM_POINTS, 3).astype(np.float32)
                 await self.conn.send(msg)
-                if self.stopping and i >= len(self.plan) - 1:
+                if self.stopping and self.queued is None and i >= len(self.plan) - 1:
                     break
                 self.tick += 1
             self.done = True
