@@ -119,7 +119,7 @@ class Policy:
     def _few_step() -> list:
         from jgrounding.generators import sampling
 
-        manifest = sampling._shipped_manifest(sampling.SHIPPED) or {}
+        manifest = json.loads(sampling.SHIPPED.read_text()) if sampling.SHIPPED.exists() else {}
         return [dict(e) for e in manifest.get("few_step", [])]
 
     def warm(self) -> None:
