@@ -68,7 +68,8 @@ class Client:
 
         headers = {"Authorization": f"Bearer {token}"} if token else None
         self.timeout = timeout
-        self.ws = connect(url, additional_headers=headers, max_size=64 << 20, open_timeout=timeout)
+        self._connection = connect(url, additional_headers=headers, max_size=64 << 20, open_timeout=timeout)
+        self.ws = self._connection.__enter__()  # websockets 17: connect() is a context manager
         self._ids = itertools.count(1)
         self.events: list[dict] = []  # non-tick messages that arrived while streaming
 
