@@ -176,11 +176,12 @@ def _loop(args, stdin, stdout, state) -> int:
             g, note = own.restrict(g, args.checkpoint)
             if note:
                 print(f"   note: {note}", file=stdout)
-            flag = "" if g.confident else f"  (low confidence: {g.reason})"
+            flag = "" if g.confident else f"  (not acting: {g.reason or 'low confidence'})"
             print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
             if not g.confident and not args.force:
                 pending = g
-                print(f"   holding still: {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
+                why = g.reason or "low confidence"
+                print(f"   holding still ({why}): {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
                 stdout.flush()
                 continue
         pending = None
