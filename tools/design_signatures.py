@@ -10,8 +10,10 @@ gradient that pushes apart, in RMS of the Catmull-Rom reconstructions,
   2 + 2 split only defeats the tuple mean when the variants are >= ~0.55 apart);
 - one intent's intensity levels two or more apart: ``T_FAR``; adjacent: ``T_ADJACENT``,
 
-while keeping each anchor's defining pulls (high anchors stay >= 0.55, anchors <= 0.2 stay <= 0.45;
-the intents that go away from the user keep the toward-user tendon <= 0.15).
+while keeping what screening and the kinematic signatures check (the intents that go away from the user
+keep the toward-user tendon <= 0.15, the ones that lean in without touching <= 0.7). Library v3 pins the
+first key pose of every code to the rest command and the last one of the gestures that return
+(``primitives.RETURNS``) to rest as well, so every realization starts from rest as a recording does.
 Intensity levels are the points 0, 1/3, 2/3, 1 of the segment from a variant's subtle end to its
 emphatic end. ``--write`` stores the result in ``jgrounding/library/signatures.py``; ``--check`` verifies
 that the stored code is what this script produces (rounded to 0.01).
@@ -28,8 +30,9 @@ from jgrounding.actuation import splines
 from jgrounding.library import primitives as pr
 from jgrounding.vocabulary import INTENTS
 
-T_INTENT, T_VARIANT, T_FAR, T_ADJACENT = 0.45, 0.8, 0.6, 0.3
+T_INTENT, T_VARIANT, T_FAR, T_ADJACENT = 0.6, 0.8, 0.8, 0.4
 VARIANT_WEIGHT = 4.0
+TRUST = 0.4  # how far refinement may move a key pose from its anchor
 LEVELS = np.arange(4) / 3.0
 OUT = Path(pr.__file__).resolve().parent / "signatures.py"
 
@@ -52,16 +55,18 @@ def _targets(split):
     return idx, target, weight
 
 
-def refine(anchors: np.ndarray, split: np.ndarray, iters: int = 2000, lr: float = 0.02, lam: float = 0.1) -> np.ndarray:
+def refine(anchors: np.ndarray, split: np.ndarray, iters: int = 3000, lr: float = 0.02, lam: float = 0.05) -> np.ndarray:
     """``anchors (16, 2 variants, 2 ends, 4, 4)`` -> the refined code, same shape, rounded to 0.01."""
     basis = splines.basis_np(150, 4)
     gram = basis.T @ basis / 150  # RMS^2 between splines = sum_j d_j^T G d_j / 4
     idx, target, weight = _targets(split)
     mi, vi, zi = (np.array(x) for x in zip(*idx))
-    lo = np.where(anchors >= 0.6, 0.55, 0.02)
-    hi = np.where(anchors <= 0.2, 0.45, 0.97)
+    lo = np.clip(anchors - TRUST, 0.0, 0.97)  # a code stays near its anchor: the gesture as written
+    hi = np.clip(anchors + TRUST, 0.0, 0.97)
     hi[pr.REACH == 2, :, :, 0] = np.minimum(hi[pr.REACH == 2, :, :, 0], 0.15)  # away intents never lean in
     hi[pr.NO_CONTACT, :, :, 0] = np.minimum(hi[pr.NO_CONTACT, :, :, 0], 0.7)  # lean in, never touch
+    lo[..., 0] = hi[..., 0] = pr.REST  # every realization starts from rest
+    lo[pr.RETURNS_MASK, ..., -1] = hi[pr.RETURNS_MASK, ..., -1] = pr.REST  # oscillations come back to rest
     code = anchors.copy()
     for _ in range(iters):
         s = LEVELS[zi][:, None, None]

@@ -8,8 +8,9 @@ candidates from :mod:`jgrounding.library.primitives` are reduced to Catmull-Rom 
 from the seed, is held out: 192 train / 64 held-out.
 
 File format (``FORMAT_VERSION`` 1): ``assets/library.npz`` with arrays ``u (256,150,4) f32``,
-``controls (256,4,P) f32``, ``intent``, ``intensity``, ``realization``, ``heldout`` (bool),
-``texts (256, n_texts) str``; and ``assets/library.json``, the card (seed, config, acceptance rates,
+``controls (256,4,P) f32``, ``intent``, ``intensity``, ``realization``, ``variant``, ``heldout`` (bool),
+``texts (256, n_texts) str``, and the evaluation set ``eval_u (E,150,4)``, ``eval_controls``,
+``eval_intent``, ``eval_intensity``, ``eval_variant`` (E = 64 x ``eval_realizations``, never trained on); and ``assets/library.json``, the card (seed, config, acceptance rates,
 sha256 of the npz). Both are byte-identical for the same seed.
 """
 
@@ -31,7 +32,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INT
 FORMAT_VERSION = 1
 # The library's content version: bump when the design (primitives, code, screening, responses) changes.
 # Checkpoints record it with the library's sha256 and are refused on another library (methods.restore).
-LIBRARY_VERSION = "2.0-one-to-many"
+LIBRARY_VERSION = "3.0-rest-start"
 ASSETS = Path(__file__).resolve().parents[2] / "assets"
 DEFAULT_PATH = ASSETS / "library.npz"
 REGENERATE = "python -m tools.build_library"
@@ -45,6 +46,10 @@ class BuildConfig:
     candidates_per_round: int = 8
     max_rounds: int = 12
     texts_per_record: int = 3
+    # The evaluation set (SPEC §3, §6): fresh realizations per tuple, balanced across its variants, drawn
+    # with another seed, never trained on; the distribution metrics score samples against it.
+    eval_realizations: int = 16
+    eval_seed_offset: int = 1000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,11 +68,26 @@ class Split:
 
 
 @dataclasses.dataclass(frozen=True)
+class EvalSet:
+    """The evaluation set: ``eval_realizations`` fresh realizations of every tuple, tuple-major."""
+
+    u: np.ndarray  # (E, 150, 4) float32
+    controls: np.ndarray  # (E, 4, P) float32
+    intent: np.ndarray  # (E,) int32
+    intensity: np.ndarray  # (E,) int32
+    variant: np.ndarray  # (E,) int32: which valid variant of the intent (0 or 1)
+
+    def __len__(self) -> int:
+        return len(self.intent)
+
+
+@dataclasses.dataclass(frozen=True)
 class Library:
     train: Split
     heldout: Split
     meta: dict
     path: str
+    evaluation: EvalSet | None = None  # None for a library file without one (an imported library)
 
 
 def _reduce(candidates: np.ndarray, num_controls: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -84,32 +104,28 @@ def _reduce(candidates: np.ndarray, num_controls: int) -> tuple[np.ndarray, np.n
     return controls, raw, np.asarray(safety.make_safe(raw))
 
 
-def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[dict, dict]:
-    """Generate, reduce and screen; returns (arrays, card). Deterministic in ``config.seed``."""
+def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bool):
+    """Screen candidates until every (intent, intensity, variant) has its planned count.
+
+    ``plan``: ``(m, z) -> variants`` of the realizations wanted. Returns ``(found, tried, accepted,
+    per_check)`` with ``found[(m, z, v)]`` a list of ``(controls, u)`` in acceptance order.
+    """
     from tqdm import tqdm
 
-    keep = {k: [] for k in ("u", "controls", "intent", "intensity", "realization", "variant", "texts")}
     tried = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     accepted = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     per_check = {c: 0 for c in screening.CHECKS}
-    # One-to-many: a tuple's realizations split evenly between its variants (primitives.variants_of).
-    plan = {
-        (m, z): primitives.variants_of(m, config.realizations)
-        for m in range(NUM_INTENTS)
-        for z in range(NUM_INTENSITIES)
-    }
     need = {(m, z, int(v)): int((vs == v).sum()) for (m, z), vs in plan.items() for v in np.unique(vs)}
-    rngs = {key: np.random.default_rng([config.seed, *key]) for key in need}
+    rngs = {key: np.random.default_rng([*seed, *key]) for key in need}
     found = {key: [] for key in need}
-    bar = tqdm(total=config.max_rounds, desc="screening rounds", disable=not progress)
+    per_round = max(config.candidates_per_round, 2 * max(need.values()))
+    bar = tqdm(total=config.max_rounds, desc=desc, disable=not progress)
     for _ in range(config.max_rounds):
         todo = [k for k in need if len(found[k]) < need[k]]
         if not todo:
             break
-        cand = np.stack(
-            [primitives.candidate(rngs[k], k[0], k[1], k[2]) for k in todo for _ in range(config.candidates_per_round)]
-        )
-        keys = np.repeat(np.array(todo), config.candidates_per_round, axis=0)
+        cand = np.stack([primitives.candidate(rngs[k], k[0], k[1], k[2]) for k in todo for _ in range(per_round)])
+        keys = np.repeat(np.array(todo), per_round, axis=0)
         controls, raw, u = _reduce(cand, config.num_controls)
         checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1])
         for c in screening.CHECKS:
@@ -129,6 +145,34 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
     }
     if short:
         raise RuntimeError(f"screening kept too few realizations for {short}; raise BuildConfig.max_rounds")
+    return found, tried, accepted, per_check
+
+
+def fresh_realizations(
+    plan: dict, seed: int, config: BuildConfig = BuildConfig(), progress: bool = False
+) -> dict[tuple[int, int], np.ndarray]:
+    """New screened realizations, drawn exactly as the library's: ``plan`` maps ``(intent, intensity)`` to
+    the variant of each realization wanted; returns ``(intent, intensity) -> u (len(variants), T, N_u)``
+    in the plan's order. The reference rows of the benchmark replay these (a perfect generator)."""
+    plan = {k: np.asarray(v, int) for k, v in plan.items()}
+    found, *_ = _search(plan, [seed, 77], config, "fresh realizations", progress)
+    out = {}
+    for key, vs in plan.items():
+        taken = {int(v): iter(found[(*key, int(v))]) for v in np.unique(vs)}
+        out[key] = np.stack([next(taken[int(v)])[1] for v in vs])
+    return out
+
+
+def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[dict, dict]:
+    """Generate, reduce and screen; returns (arrays, card). Deterministic in ``config.seed``."""
+    keep = {k: [] for k in ("u", "controls", "intent", "intensity", "realization", "variant", "texts")}
+    # One-to-many: a tuple's realizations split evenly between its variants (primitives.variants_of).
+    plan = {
+        (m, z): primitives.variants_of(m, config.realizations)
+        for m in range(NUM_INTENTS)
+        for z in range(NUM_INTENSITIES)
+    }
+    found, tried, accepted, per_check = _search(plan, [config.seed], config, "screening rounds", progress)
     split_rng = np.random.default_rng([config.seed, 999])
     heldout = []
     for m in range(NUM_INTENTS):
@@ -148,6 +192,22 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
                     responses.response_texts(m, z, config.texts_per_record, text_rng, heldout=r == held)
                 )
                 heldout.append(r == held)
+    # The evaluation set: the same generator and screening, another seed, balanced across variants.
+    eval_plan = {
+        (m, z): primitives.variants_of(m, config.eval_realizations)
+        for m in range(NUM_INTENTS)
+        for z in range(NUM_INTENSITIES)
+    }
+    eval_found, *_ = _search(
+        eval_plan, [config.seed + config.eval_seed_offset], config, "screening the evaluation set", progress
+    )
+    ev = {k: [] for k in ("u", "controls", "intent", "intensity", "variant")}
+    for (m, z), vs in eval_plan.items():
+        taken = {int(v): iter(eval_found[(m, z, int(v))]) for v in np.unique(vs)}
+        for v in vs:
+            c, u = next(taken[int(v)])
+            for k, x in zip(ev, (u, c, m, z, int(v))):
+                ev[k].append(x)
     arrays = {
         "u": np.asarray(keep["u"], np.float32),
         "controls": np.asarray(keep["controls"], np.float32),
@@ -157,6 +217,11 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         "variant": np.asarray(keep["variant"], np.int32),
         "heldout": np.asarray(heldout, bool),
         "texts": np.asarray(keep["texts"], dtype=np.str_),
+        "eval_u": np.asarray(ev["u"], np.float32),
+        "eval_controls": np.asarray(ev["controls"], np.float32),
+        "eval_intent": np.asarray(ev["intent"], np.int32),
+        "eval_intensity": np.asarray(ev["intensity"], np.int32),
+        "eval_variant": np.asarray(ev["variant"], np.int32),
     }
     arrays["library_version"] = np.asarray(LIBRARY_VERSION)
     arrays["content_sha256"] = np.asarray(content_hash(arrays))
@@ -168,6 +233,7 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         "num_records": int(len(arrays["u"])),
         "num_train": int((~arrays["heldout"]).sum()),
         "num_heldout": int(arrays["heldout"].sum()),
+        "num_eval": int(len(arrays["eval_u"])),
         "candidates_tried": int(tried.sum()),
         "candidates_accepted": int(accepted.sum()),
         "passed_per_check": per_check,
@@ -256,7 +322,12 @@ def load_library(path: str | Path | None = None) -> Library:
     if missing:
         raise ValueError(f"library {path} lacks arrays {sorted(missing)}; regenerate with `{REGENERATE}`")
     held = arrays["heldout"].astype(bool)
-    return Library(train=_split(arrays, ~held), heldout=_split(arrays, held), meta=card, path=str(path))
+    evaluation = None
+    if "eval_u" in arrays:
+        evaluation = EvalSet(**{k: arrays[f"eval_{k}"] for k in ("u", "controls", "intent", "intensity", "variant")})
+    return Library(
+        train=_split(arrays, ~held), heldout=_split(arrays, held), meta=card, path=str(path), evaluation=evaluation
+    )
 
 
 # Brackets of the success metric (SPEC §3): expected values over the library, exact (every training
@@ -353,7 +424,7 @@ def fold(lib: Library, k: int) -> Library:
             }
         )
 
-    return Library(train=part(~held), heldout=part(held), meta={**lib.meta, "fold": k}, path=lib.path)
+    return dataclasses.replace(lib, train=part(~held), heldout=part(held), meta={**lib.meta, "fold": k})
 
 
 def variant_midpoint(lib, taus=(0.25, 0.30, 0.35, 0.40, 0.45)) -> dict | None:

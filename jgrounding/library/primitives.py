@@ -18,9 +18,15 @@ trunk, on time); moderate and pronounced are the points 1/3 and 2/3 of the way. 
 refined into a code in which every two intents, every two variants and every two intensity levels
 two apart are far in RMS (``python -m tools.design_signatures``; :data:`CODE`).
 
-A candidate is a cosine-eased interpolation of the key poses on a time axis warped per realization,
-with per-realization variation in amplitude, timing and key-pose noise. The library reduces it with
-Eq. (ci) and keeps it only if it passes screening.
+**Library v3: recordings of a real trunk.** Every realization starts from the trunk's rest command (all
+tendons slack: the first key pose is 0) and either returns to rest (the oscillating gestures in
+:data:`RETURNS`) or holds its last pose (pointing holds, withdrawal stays away, farewell ends retracted).
+Within a variant, realizations vary as a person's repetitions do (:class:`Variation`): onset and tempo
++-15 %, amplitude +-10 % and a little key-pose noise.
+
+A candidate is the Catmull-Rom curve through the key poses, played on a time axis that is delayed
+(onset) and stretched (tempo) per realization, scaled (amplitude) and jittered. The library reduces it
+with Eq. (ci) and keeps it only if it passes screening.
 """
 
 from __future__ import annotations
@@ -33,54 +39,46 @@ from jgrounding.library.signatures import CODE as _CODE
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
 NUM_STEPS = 150
+REST = 0.0  # the rest command: every tendon slack (jgrounding.safety.REST)
 KEY_TIMES = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
 MIRROR = np.array([0, 3, 2, 1])  # left <-> right tendons
 
 # Emphatic key poses of variant A per intent, written from SPEC §2: rows (toward, L, away, R), columns
 # the four key moments; 0 slack .. 1 largest safe pull.
 _ANCHORS = {
-    # rises toward the user on its left side and waves (lateral pull pulses over a left-held bend)
-    "greeting": ([0.15, 0.8, 0.8, 0.5], [0.6, 0.95, 0.45, 0.95], [0.05, 0.05, 0.05, 0.05], [0.05, 0.05, 0.6, 0.05]),
-    # slow lowering wave that ends retracted (all tendons co-contracted)
-    "farewell": ([0.05, 0.05, 0.05, 0.3], [0.85, 0.6, 0.9, 0.5], [0.05, 0.2, 0.3, 0.6], [0.05, 0.05, 0.05, 0.05]),
-    # slow approach toward the user's left shoulder, then gentle patting (toward pull pulses)
-    "comforting": ([0.05, 0.7, 0.4, 0.85], [0.6, 0.85, 0.85, 0.85], [0.05, 0.05, 0.05, 0.05], [0.05, 0.05, 0.05, 0.05]),
+    # v3: the first key pose is rest (every realization starts there); the gestures in RETURNS end at rest.
+    # rises toward the user and waves (left, then right), ends raised toward the user
+    "greeting": ([0, 0.7, 0.7, 0.6], [0, 0.9, 0.1, 0.5], [0, 0.0, 0.0, 0.0], [0, 0.05, 0.8, 0.05]),
+    # a slow wave (right, then left) that lowers and ends retracted (all tendons co-contracted)
+    "farewell": ([0, 0.3, 0.1, 0.1], [0, 0.1, 0.7, 0.45], [0, 0.5, 0.3, 0.45], [0, 0.7, 0.1, 0.45]),
+    # slow approach toward the user's left shoulder, contact, then a stroke
+    "comforting": ([0, 0.6, 0.95, 0.9], [0, 0.6, 0.8, 0.4], [0, 0.0, 0.0, 0.0], [0, 0.0, 0.0, 0.0]),
     # leans toward the user and holds nearly still, tip slightly tilted
-    "attentive_listening": (
-        [0.55, 0.6, 0.6, 0.6],
-        [0.35, 0.35, 0.35, 0.35],
-        [0.05, 0.05, 0.05, 0.05],
-        [0.05, 0.05, 0.05, 0.05],
-    ),
-    # extends and probes on the left side of the object, sniffing side to side
-    "curiosity": ([0.3, 0.35, 0.35, 0.3], [0.6, 0.95, 0.45, 0.95], [0.35, 0.05, 0.05, 0.05], [0.05, 0.05, 0.5, 0.05]),
-    # wide curl around the user, wrapping from the robot's left
-    "embracing": ([0.05, 0.7, 0.95, 0.95], [0.6, 0.9, 0.9, 0.9], [0.05, 0.05, 0.05, 0.05], [0.05, 0.05, 0.05, 0.05]),
-    # retracts (co-contraction) and bends away from the user
-    "withdrawal": ([0.05, 0.05, 0.05, 0.05], [0.05, 0.35, 0.4, 0.4], [0.15, 0.8, 0.95, 0.95], [0.05, 0.2, 0.3, 0.3]),
-    # curls the tip inward into a tight spiral near the body, to the robot's right (strong lateral curl)
-    "coiling": ([0.05, 0.2, 0.35, 0.35], [0.05, 0.05, 0.05, 0.05], [0.05, 0.3, 0.45, 0.45], [0.6, 0.85, 0.95, 0.95]),
-    # loose bouncy pendulum: lateral swings with a little away-pull
-    "playful_swing": (
-        [0.05, 0.05, 0.05, 0.05],
-        [0.95, 0.05, 0.95, 0.05],
-        [0.3, 0.45, 0.3, 0.45],
-        [0.05, 0.95, 0.05, 0.95],
-    ),
-    # bobs up and down: co-contraction pulses (shorten / lengthen) with a forward lean
-    "nodding": ([0.35, 0.85, 0.35, 0.85], [0.05, 0.55, 0.05, 0.55], [0.05, 0.5, 0.05, 0.5], [0.05, 0.55, 0.05, 0.55]),
-    # shakes side to side: lateral oscillation with a co-contracted away tendon (stiff, upright)
-    "refusing": ([0.05, 0.05, 0.05, 0.05], [0.05, 0.85, 0.05, 0.85], [0.6, 0.6, 0.6, 0.6], [0.85, 0.05, 0.85, 0.05]),
-    # curls the tip back toward the robot from its left: away-pull pulses over a left-held bend
-    "beckoning": ([0.45, 0.25, 0.45, 0.25], [0.6, 0.85, 0.85, 0.85], [0.15, 0.9, 0.25, 0.9], [0.05, 0.05, 0.05, 0.05]),
+    "attentive_listening": ([0, 0.6, 0.6, 0.6], [0, 0.2, 0.2, 0.2], [0, 0.0, 0.0, 0.0], [0, 0.0, 0.0, 0.0]),
+    # extends and probes, sniffing to the right, then the left, then the right again
+    "curiosity": ([0, 0.45, 0.45, 0.3], [0, 0.05, 0.8, 0.05], [0, 0.4, 0.1, 0.4], [0, 0.8, 0.05, 0.5]),
+    # wide curl around the user, wrapping from the robot's left, held
+    "embracing": ([0, 0.8, 0.95, 0.95], [0, 0.9, 0.95, 0.95], [0, 0.0, 0.0, 0.0], [0, 0.0, 0.3, 0.3]),
+    # retracts (co-contraction) and bends away from the user, held there
+    "withdrawal": ([0, 0.0, 0.0, 0.0], [0, 0.1, 0.3, 0.3], [0, 0.7, 0.95, 0.95], [0, 0.1, 0.3, 0.3]),
+    # curls the tip inward into a tight spiral near the body, to the robot's right, held
+    "coiling": ([0, 0.0, 0.0, 0.0], [0, 0.0, 0.0, 0.0], [0, 0.3, 0.5, 0.5], [0, 0.8, 0.95, 0.95]),
+    # loose, bouncy pendulum: right, then left, then back to rest
+    "playful_swing": ([0, 0.2, 0.2, 0], [0, 0.05, 0.95, 0], [0, 0.2, 0.2, 0], [0, 0.95, 0.05, 0]),
+    # bobs in the sagittal plane: toward the user (up), away (up on the other side), back to rest
+    "nodding": ([0, 0.8, 0.05, 0], [0, 0.2, 0.2, 0], [0, 0.05, 0.7, 0], [0, 0.2, 0.2, 0]),
+    # shakes in the lateral plane, stiff (away tendon co-contracted): left, right, back to rest
+    "refusing": ([0, 0.0, 0.0, 0], [0, 0.85, 0.05, 0], [0, 0.6, 0.6, 0], [0, 0.05, 0.85, 0]),
+    # reaches, curls the tip back toward the robot, reaches again: come closer
+    "beckoning": ([0, 0.7, 0.2, 0.7], [0, 0.5, 0.5, 0.5], [0, 0.2, 0.8, 0.2], [0, 0.0, 0.0, 0.0]),
     # extends toward a target on the user's left and holds
-    "pointing": ([0.15, 0.9, 0.9, 0.9], [0.6, 0.85, 0.85, 0.85], [0.05, 0.5, 0.5, 0.5], [0.05, 0.05, 0.05, 0.05]),
-    # rises high with energetic flourishes: all tendons strong (shortened, raised), lateral flourish
-    "celebrating": ([0.55, 0.95, 0.6, 0.95], [0.5, 0.95, 0.3, 0.95], [0.55, 0.95, 0.6, 0.95], [0.5, 0.3, 0.95, 0.3]),
-    # relaxes and droops: almost slack, slow
-    "resting": ([0.1, 0.05, 0.05, 0.05], [0.1, 0.05, 0.05, 0.05], [0.1, 0.05, 0.05, 0.05], [0.1, 0.05, 0.05, 0.05]),
-    # reaches toward the user with the tip curled upward, handing over from its left
-    "offering": ([0.05, 0.5, 0.95, 0.95], [0.6, 0.85, 0.85, 0.85], [0.05, 0.05, 0.05, 0.05], [0.05, 0.3, 0.3, 0.3]),
+    "pointing": ([0, 0.9, 0.9, 0.9], [0, 0.5, 0.55, 0.55], [0, 0.0, 0.0, 0.0], [0, 0.0, 0.0, 0.0]),
+    # rises high and back (trumpet-like) with energetic lateral flourishes
+    "celebrating": ([0, 0.0, 0.0, 0.0], [0, 0.1, 0.9, 0.1], [0, 0.95, 0.8, 0.95], [0, 0.9, 0.1, 0.9]),
+    # relaxes and droops: barely pulled, slow
+    "resting": ([0, 0.1, 0.1, 0.1], [0, 0.1, 0.15, 0.15], [0, 0.15, 0.2, 0.2], [0, 0.1, 0.15, 0.15]),
+    # reaches toward the user and curls the tip upward (away pull at the end), handing over from its left
+    "offering": ([0, 0.7, 0.95, 0.95], [0, 0.4, 0.4, 0.4], [0, 0.0, 0.3, 0.5], [0, 0.0, 0.0, 0.0]),
 }
 ANCHORS = np.array([np.array(_ANCHORS[m], dtype=np.float64) for m in INTENTS])  # (16, 4, 4)
 
@@ -102,6 +100,10 @@ SPLIT = np.array([m in VARIANTS for m in INTENTS])
 # alternation): close enough that a replay of the other phase is sometimes within tau, too far to
 # be the same answer; we keep one phase and leave the side to the tilt.
 
+# Gestures that oscillate and come back: they end at rest. The others hold their last pose.
+RETURNS = ("nodding", "refusing", "playful_swing")
+RETURNS_MASK = np.array([m in RETURNS for m in INTENTS])
+
 REACH = np.array([2 if m in ("withdrawal", "coiling", "resting", "refusing") else 0 for m in INTENTS])
 # Intents that lean toward the user without touching: their toward-user pull stays below contact.
 NO_CONTACT = np.array(
@@ -109,29 +111,34 @@ NO_CONTACT = np.array(
 )
 
 
-def subtle_anchor(poses: np.ndarray, reach: int) -> np.ndarray:
-    """The subtle end of a variant: kept back near the body, little reach, a late, slow onset."""
+SUBTLE_SCALE = 0.5  # the subtle end pulls half as hard as the emphatic one
+SUBTLE_LAG = 1.0  # and reaches each key pose one key moment later (slower)
+
+
+def subtle_anchor(poses: np.ndarray, intent: int) -> np.ndarray:
+    """The subtle end of a variant: the same gesture with half the pull (less reach and curvature), one key
+    moment late (a slower tempo)."""
     p = poses.copy()
-    p[:, 1:] = 0.5 * poses[:, 1:] + 0.5 * poses[:, :-1]  # half a key moment late: slower tempo
-    p[reach] = 0.05 + (p[reach] - 0.05) * 0.15  # small reach in the intent's own direction
-    if reach == 0:  # intents that go toward the user are held back by the away tendon: a respectful distance
-        p[2] += 0.4 * (1.0 - p[2])
-    return p
+    p[:, 1:] = (1 - SUBTLE_LAG) * poses[:, 1:] + SUBTLE_LAG * poses[:, :-1]  # late: a slower tempo
+    if RETURNS_MASK[intent]:
+        p[:, -1] = REST  # an oscillation still comes back to rest
+    return REST + SUBTLE_SCALE * (p - REST)
 
 
 def emphatic_anchor(poses: np.ndarray) -> np.ndarray:
-    """The emphatic end: full reach as written, slack tendons co-contracted (stiffer, more curvature)."""
-    p = poses.copy()
-    p[:, 1:] = np.where(p[:, 1:] < 0.2, p[:, 1:] + 0.25, p[:, 1:])
-    return p
+    """The emphatic end: the gesture as written, full reach and curvature, on time."""
+    return poses.copy()
 
 
 def design_anchors() -> np.ndarray:
-    """``(16, 2, 2, 4, 4)``: [intent, variant, end (subtle, emphatic)] key poses before refinement."""
+    """``(16, 2, 2, 4, 4)``: [intent, variant, end (subtle, emphatic)] key poses before refinement; the
+    first key pose is the rest command and the gestures in :data:`RETURNS` end at rest."""
     out = np.zeros((len(INTENTS), 2, 2, 4, 4))
     for m in range(len(INTENTS)):
-        out[m, 0] = subtle_anchor(ANCHORS[m], REACH[m]), emphatic_anchor(ANCHORS[m])
+        out[m, 0] = subtle_anchor(ANCHORS[m], m), emphatic_anchor(ANCHORS[m])
         out[m, 1] = out[m, 0][:, MIRROR]
+    out[..., 0] = REST
+    out[RETURNS_MASK, ..., -1] = REST
     return out
 
 
@@ -146,25 +153,16 @@ def key_poses(intent: int, variant: int, intensity: int) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class Variation:
-    """Spread of the realizations within one variant (SPEC §3)."""
+    """Spread of the realizations within one variant (SPEC §3): what a person's repetitions vary."""
 
-    amplitude: float = 0.08  # relative, uniform +-
-    timing: float = 0.06  # shift of the middle key times, uniform +-
-    jitter: float = 0.04  # per key-pose noise (std)
+    onset: float = 0.15  # the motion starts up to this share of the first key interval late (uniform)
+    tempo: float = 0.15  # relative speed, uniform +- (a faster repetition reaches its poses sooner)
+    amplitude: float = 0.10  # relative size of every pull, uniform +-
+    jitter: float = 0.05  # per key-pose noise (std), after the rest pose
     tilt: float = 0.15  # intents with one form: extra pull of one lateral tendon (coin): tip tilt
 
 
-def _ease(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
-    w = 0.5 - 0.5 * np.cos(np.pi * s)
-    return a + (b - a) * w
-
-
-def _interpolate(poses: np.ndarray, times: np.ndarray, num_steps: int) -> np.ndarray:
-    """Cosine-eased interpolation of key poses ``(4, K)`` at ``times`` -> ``(T, 4)``."""
-    tau = np.linspace(0.0, 1.0, num_steps)
-    seg = np.clip(np.searchsorted(times, tau, side="right") - 1, 0, len(times) - 2)
-    s = (tau - times[seg]) / (times[seg + 1] - times[seg])
-    return _ease(poses[:, seg], poses[:, seg + 1], s).T
+_FINE = 600  # resolution of the key-pose curve before the time warp
 
 
 def candidate(
@@ -175,16 +173,22 @@ def candidate(
     variation: Variation = Variation(),
     num_steps: int = NUM_STEPS,
 ) -> np.ndarray:
-    """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``."""
+    """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``: starts at rest."""
+    from jgrounding.actuation import splines
+
     poses = key_poses(intent, variant, intensity)
+    moving = slice(1, None if not RETURNS_MASK[intent] else -1)  # rest stays rest
     if not SPLIT[intent]:
-        poses[1 if rng.random() < 0.5 else 3] += variation.tilt * rng.uniform(0.6, 1.0)
-    base = 0.05
-    poses = base + (poses - base) * (1.0 + rng.uniform(-variation.amplitude, variation.amplitude))
-    poses = np.clip(poses + rng.normal(0.0, variation.jitter, poses.shape), 0.02, 0.97)
-    times = KEY_TIMES.copy()
-    times[1:3] = times[1:3] + rng.uniform(-variation.timing, variation.timing)
-    return _interpolate(poses, times, num_steps)
+        poses[1 if rng.random() < 0.5 else 3, moving] += variation.tilt * rng.uniform(0.6, 1.0)
+    poses[:, moving] = np.clip(poses[:, moving] + rng.normal(0.0, variation.jitter, poses[:, moving].shape), 0, 1)
+    onset = rng.uniform(0.0, variation.onset) * KEY_TIMES[1]
+    tempo = 1.0 + rng.uniform(-variation.tempo, variation.tempo)
+    tau = np.linspace(0.0, 1.0, num_steps)
+    warped = np.clip((tau - onset) * tempo, 0.0, 1.0)
+    curve = splines.basis_np(_FINE, poses.shape[1]) @ poses.T  # (_FINE, 4)
+    fine = np.linspace(0.0, 1.0, _FINE)
+    out = np.stack([np.interp(warped, fine, curve[:, j]) for j in range(curve.shape[1])], axis=-1)
+    return REST + (out - REST) * (1.0 + rng.uniform(-variation.amplitude, variation.amplitude))
 
 
 def variants_of(intent: int, realizations: int = 4) -> np.ndarray:

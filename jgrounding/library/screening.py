@@ -23,6 +23,8 @@ MAX_JERK = 0.03  # max |third difference| of u per step: a saturation kink at a 
 # a subtle motion must keep its respectful distance (no contact: ``far(z)``).
 NEAR = (0.30, 0.28, 0.24, 0.15)  # m: the tip comes at least this close to the user, per intensity
 REACH = (-0.05, -0.03, 0.02, 0.12)  # m: toward-user reach of intents that go toward the user, per intensity
+SWING = (0.08, 0.12, 0.18, 0.25)  # m: lateral excursion of a swing or a shake, per intensity
+RISE = (0.05, 0.1, 0.15, 0.25)  # m: how high a celebration lifts the tip above rest, per intensity
 
 
 def _near(f, z):
@@ -34,26 +36,42 @@ def _reach(f, z):
 
 
 def _respectful(f, z):
-    return (z >= 2) | (f["min_user_distance"] > 0.10)
+    return (z >= 2) | (f["min_user_distance"] > 0.05)
 
 
+# Library v3 (every realization starts from rest and has three key poses after it) checks each intent's
+# kinematic signature (SPEC §2) on the simulated tip path: the plane an oscillation lies in, where a
+# motion ends, how high it rises.
 RULES = {
-    "greeting": lambda f, z: _reach(f, z) & (f["lateral_reversals"] >= 1) & _respectful(f, z),
+    "greeting": lambda f, z: (
+        _reach(f, z) & (f["lateral_reversals"] >= 1) & (f["rise"] > np.take(RISE, z) / 2) & _respectful(f, z)
+    ),
     "farewell": lambda f, z: (f["lateral_reversals"] >= 1) & (f["max_tip_height"] > 0.55),
     "comforting": lambda f, z: _near(f, z) & _reach(f, z),
     "attentive_listening": lambda f, z: _reach(f, z) & _respectful(f, z),
-    "curiosity": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.2),
+    "curiosity": lambda f, z: (f["lateral_reversals"] >= 1) & (f["lateral_excursion"] > 0.5 * np.take(SWING, z)),
     "embracing": lambda f, z: (f["curvature_max"] > 1.4) & _near(f, z) & _reach(f, z),
     "withdrawal": lambda f, z: (
-        (f["retreat_from_user"] > np.take((-0.01, 0.02, 0.05, 0.08), z)) & (f["reach_toward_user"] < 0.05)
+        (f["retreat_from_user"] > np.take((-0.01, 0.02, 0.05, 0.08), z))
+        & (f["reach_toward_user"] < 0.05)
+        & (f["final_retreat"] > 0.0)  # ends farther from the user than it started
     ),
     "coiling": lambda f, z: (f["curvature_max"] > 1.2) & (f["reach_toward_user"] < 0.08),
-    "playful_swing": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.3),
-    "nodding": lambda f, z: (f["vertical_reversals"] >= 2) & _respectful(f, z),
-    "refusing": lambda f, z: (f["lateral_reversals"] >= 2) & (f["lateral_excursion"] > 0.25) & _respectful(f, z),
-    "beckoning": lambda f, z: (f["vertical_reversals"] >= 2) & (f["retreat_from_user"] > 0.0),
+    "playful_swing": lambda f, z: (f["lateral_reversals"] >= 1) & (f["lateral_excursion"] > np.take(SWING, z)),
+    "nodding": lambda f, z: (
+        (f["vertical_reversals"] >= np.take((1, 1, 2, 2), z))  # a subtle nod is one bob
+        & (f["sagittal_excursion"] > f["lateral_excursion"])
+        & _respectful(f, z)
+    ),
+    "refusing": lambda f, z: (
+        (f["lateral_reversals"] >= 1)
+        & (f["lateral_excursion"] > np.take(SWING, z))
+        & (f["lateral_excursion"] > 0.8 * f["sagittal_excursion"])
+        & _respectful(f, z)
+    ),
+    "beckoning": lambda f, z: (f["vertical_reversals"] >= np.take((0, 0, 1, 1), z)) & (f["retreat_from_user"] > 0.0),
     "pointing": lambda f, z: _reach(f, z) & (f["peak_tip_speed"] < 3.5) & _respectful(f, z),
-    "celebrating": lambda f, z: (f["vertical_reversals"] >= 3) & (f["peak_tip_speed"] > 1.0),
+    "celebrating": lambda f, z: (f["lateral_reversals"] >= 1) & (f["rise"] > np.take(RISE, z)),
     "resting": lambda f, z: (f["peak_tip_speed"] < 2.0) & (f["min_user_distance"] > 0.10),
     "offering": lambda f, z: _near(f, z) & _reach(f, z),
 }
