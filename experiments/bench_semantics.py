@@ -1,90 +1,169 @@
-"""Semantic reduction on the independently written evaluation set: `python -m experiments.bench semantics`.
+"""Selective semantic grounding on the frozen evaluation sets: `python -m experiments.bench semantics`.
 
-Reports the TEST split (assets/semantics_eval/test.jsonl, never tuned on) with the dev split beside it, for
-the shipped reducer (``jg.ground``: the trained head) and, in the same run, the first cue-list reducer
-(``backend="cues"``) as the baseline. Every text goes through the public ``jg.ground`` one at a time, so
-the milliseconds are what a user waits per response (warm: the first call is timed apart). Writes
-``results/bench_semantics.md`` and the test split's 16 x 16 intent confusion matrix
-``results/semantics_confusion.png``.
+Reads the TEST splits only here (never tuned on): ``assets/semantics_eval_v2/test.jsonl`` (five styles of motion
+texts and eight kinds of texts that call for no motion) and the plainly worded ``assets/semantics_eval/test.jsonl``.
+Three reducers run in the same process, each text grounded alone, warm (``semantics.warmup``: every token
+bucket compiled before timing):
+
+- ``new``: the shipped trained head (``jg.ground``, ``escalate=False``);
+- ``old``: the first trained head (``assets/semantic_head_v1.npz``, the embedding + Eq. (3) head of #15);
+- ``cues``: the cue-list reducer (``backend="cues"``), the baseline.
+
+Per style and overall: intent accuracy on motion texts, the share of motion texts acted on (confident), the
+confident wrong motion rate (acted on with the wrong intent, share of motion texts), the share of no-behaviour
+texts held (not acted on; the rest are motions where none was asked), intensity exact / within one level, ECE
+(10 bins of the intent confidence against "right intent on a motion text", over all texts) and latency (warm
+median, p99; the first call in a fresh process is timed in a subprocess, with the compilation cache warm and
+cold). A risk-coverage curve (accuracy of the acted-on texts, a no-behaviour text counting as wrong, against the
+share acted on, texts ranked by confidence) is saved as ``results/semantics_risk_coverage.png``. Writes
+``results/bench_semantics.md`` and ``.json`` and the confusion matrix ``results/semantics_confusion.png``.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 import jgrounding as jg
+from jgrounding import semantics
 from jgrounding.io import write_atomic
+from jgrounding.semantics import embedded, encoder
 from jgrounding.semantics import head as semantic_head
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 ROOT = Path(__file__).resolve().parent.parent
 SPLITS = {
-    "test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
-    "dev": ROOT / "assets" / "semantics_eval" / "dev.jsonl",
+    "v2 test": ROOT / "assets" / "semantics_eval_v2" / "test.jsonl",
+    "plain test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
 }
-REDUCERS = {"embedded": "trained head (jg.ground default)", "cues": "cue-list reducer (baseline)"}
+OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
+REDUCERS = {
+    "new": "trained head, structure-aware (jg.ground)",
+    "old": "first trained head (#15)",
+    "cues": "cue-list reducer (baseline)",
+}
 RESULTS = ROOT / "results"
+GOALS = {
+    "intent": 0.95,
+    "confident_wrong": 0.03,
+    "none_held": 0.90,
+    "exact": 0.75,
+    "within_one": 0.97,
+    "ece": 0.05,
+    "ms_median": 5.0,
+    "ms_p99": 15.0,
+    "first_call_s": 1.5,
+}
+FIRST_CALL = (
+    "import time; t = time.perf_counter(); import jgrounding as jg; "
+    "jg.ground('The user looks sad; comfort them gently.', escalate=False); print(time.perf_counter() - t)"
+)
 
 
-def run(items: list[dict], backend: str) -> dict:
-    """Ground every item alone through ``jg.ground``; accuracy, intensity, calibration and latency."""
+def read_jsonl(path) -> list[dict]:
+    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
+def grounder(name: str):
+    if name == "new":
+        return lambda t: jg.ground(t, escalate=False)
+    if name == "cues":
+        return lambda t: jg.ground(t, backend="cues")
+    old = semantic_head.load(str(OLD_HEAD))
+    return lambda t: embedded.ground_embedded_many([t], head=old)[0]
+
+
+def run(items: list[dict], fn) -> tuple[list, np.ndarray]:
+    """Ground every item alone; the groundings and the seconds each took."""
     preds, times = [], []
     for it in items:
         t0 = time.perf_counter()
-        preds.append(jg.ground(it["text"], backend=backend, escalate=False))
+        preds.append(fn(it["text"]))
         times.append(time.perf_counter() - t0)
+    return preds, np.array(times)
+
+
+def metrics(items: list[dict], preds: list) -> dict:
+    """Selective-grounding metrics of a group of items (see the module docstring)."""
+    true = np.array([-1 if it["intent"] == "none" else INTENTS.index(it["intent"]) for it in items])
+    motion = true >= 0
     m = np.array([INTENTS.index(g.intent) for g in preds])
     z = np.array([INTENSITIES.index(g.intensity) for g in preds])
-    m_true = np.array([INTENTS.index(it["intent"]) for it in items])
-    z_true = np.array([INTENSITIES.index(it["intensity"]) for it in items])
+    z_true = np.array([INTENSITIES.index(it["intensity"]) if it["intent"] != "none" else -9 for it in items])
+    acted = np.array([g.confident for g in preds])
     conf = np.array([g.confidence for g in preds])
-    confident = np.array([g.confident for g in preds])
-    ok = m == m_true
+    ok = (m == true) & motion
+
+    def mean(x):
+        return float(np.mean(x)) if len(x) else None
+
     return {
         "n": len(items),
-        "intent": ok.mean(),
-        "exact": np.mean(z == z_true),
-        "within_one": np.mean(np.abs(z - z_true) <= 1),
+        "n_motion": int(motion.sum()),
+        "n_none": int((~motion).sum()),
+        "intent": mean(ok[motion]),
+        "acted": mean(acted[motion]),
+        "acted_accuracy": mean(ok[motion & acted]),
+        "confident_wrong": mean((acted & ~ok)[motion]),
+        "none_held": mean(~acted[~motion]),
+        "exact": mean((z == z_true)[motion]),
+        "within_one": mean((np.abs(z - z_true) <= 1)[motion]),
         "ece": semantic_head.expected_calibration_error(conf, ok),
-        "coverage": confident.mean(),
-        "confident_accuracy": ok[confident].mean() if confident.any() else float("nan"),
-        "ms_median": 1e3 * np.median(times),
-        "ms_mean": 1e3 * np.mean(times),
-        "pred": m,
-        "true": m_true,
     }
 
 
-def confusion_figure(true, pred, path: Path, title: str) -> Path:
+def risk_coverage(items: list[dict], preds: list) -> tuple[np.ndarray, np.ndarray]:
+    """Accuracy of the k most confident groundings (a no-behaviour text is never right) against coverage k/N."""
+    true = [it["intent"] for it in items]
+    conf = np.array([g.confidence for g in preds])
+    ok = np.array([g.intent == t for g, t in zip(preds, true)], float)
+    order = np.argsort(-conf, kind="stable")
+    k = np.arange(1, len(items) + 1)
+    return k / len(items), np.cumsum(ok[order]) / k
+
+
+def first_call_seconds(cache: str | None) -> float:
+    """The first ``jg.ground`` in a fresh process (import included); ``cache``: a compilation-cache folder."""
+    env = dict(os.environ)
+    if cache is not None:
+        env["JGROUNDING_CACHE"] = cache
+    out = subprocess.run([sys.executable, "-c", FIRST_CALL], env=env, cwd=ROOT, capture_output=True, text=True)
+    if out.returncode:
+        raise RuntimeError(out.stderr[-2000:])
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def _fmt(x, digits=3):
+    return "–" if x is None else f"{x:.{digits}f}"
+
+
+def figure(curves: dict, path: Path) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cm = np.zeros((len(INTENTS), len(INTENTS)), int)
-    np.add.at(cm, (true, pred), 1)
-    fig, ax = plt.subplots(figsize=(8.5, 7.5))
-    im = ax.imshow(cm, cmap="Blues")
-    for i, j in zip(*np.nonzero(cm)):
-        ax.text(
-            j,
-            i,
-            str(cm[i, j]),
-            ha="center",
-            va="center",
-            fontsize=7,
-            color="white" if cm[i, j] > cm.max() / 2 else "black",
-        )
-    ax.set_xticks(range(len(INTENTS)), INTENTS, rotation=60, ha="right", fontsize=8)
-    ax.set_yticks(range(len(INTENTS)), INTENTS, fontsize=8)
-    ax.set_xlabel("predicted intent")
-    ax.set_ylabel("true intent")
-    ax.set_title(title, fontsize=10)
-    fig.colorbar(im, ax=ax, shrink=0.8)
+    splits = sorted({s for _, s in curves}, key=list(SPLITS).index)
+    fig, axes = plt.subplots(1, len(splits), figsize=(5.2 * len(splits), 4.2), squeeze=False)
+    for ax, split in zip(axes[0], splits):
+        for (name, s), (cov, acc, point) in curves.items():
+            if s != split:
+                continue
+            (line,) = ax.plot(cov, acc, label=f"{name}: {REDUCERS[name]}")
+            ax.plot(*point, "o", color=line.get_color())
+        ax.set_xlabel("coverage (share of texts acted on, most confident first)")
+        ax.set_ylabel("accuracy of the acted-on texts")
+        ax.set_title(f"risk-coverage, {split} (dot: the reducer's own threshold)", fontsize=9)
+        ax.set_ylim(0.4, 1.01)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp.png")
@@ -94,59 +173,184 @@ def confusion_figure(true, pred, path: Path, title: str) -> Path:
     return path
 
 
+def confusion_figure(true, pred, path: Path, title: str) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = [*INTENTS, "none"]
+    cm = np.zeros((len(labels), len(labels)), int)
+    np.add.at(cm, (true, pred), 1)
+    fig, ax = plt.subplots(figsize=(8.5, 7.5))
+    im = ax.imshow(cm, cmap="Blues")
+    for i, j in zip(*np.nonzero(cm)):
+        color = "white" if cm[i, j] > cm.max() / 2 else "black"
+        ax.text(j, i, str(cm[i, j]), ha="center", va="center", fontsize=7, color=color)
+    ax.set_xticks(range(len(labels)), labels, rotation=60, ha="right", fontsize=8)
+    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    ax.set_xlabel("grounded (none: held as no behaviour)")
+    ax.set_ylabel("true")
+    ax.set_title(title, fontsize=10)
+    fig.colorbar(im, ax=ax, shrink=0.8)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
 def main(argv=None) -> int:
-    missing = [str(p) for p in SPLITS.values() if not p.exists()]
+    missing = [str(p) for p in [*SPLITS.values(), OLD_HEAD] if not p.exists()]
     if missing:
-        print(f"missing evaluation split(s): {', '.join(missing)}")
+        print(f"missing: {', '.join(missing)}")
         return 1
-    splits = {
-        name: [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-        for name, path in SPLITS.items()
-    }
+    splits = {name: read_jsonl(path) for name, path in SPLITS.items()}
+    with tempfile.TemporaryDirectory() as cold:
+        first_cold = first_call_seconds(cold)
+    first_call_seconds(None)  # fill the user's compilation cache (a no-op when it is already warm)
+    first_warm = [first_call_seconds(None) for _ in range(3)]
+    fns = {name: grounder(name) for name in REDUCERS}
+    semantics.warmup(256)  # warm: weights loaded, every token bucket compiled (or loaded from the cache)
+    encoder.warmup(256)  # the first head's and the cue-list reducer's encoder
+    for fn in fns.values():
+        fn(splits["v2 test"][0]["text"])
+    res, curves, latency = {}, {}, {}
+    for name, fn in fns.items():
+        times = []
+        for split, items in splits.items():
+            fn(items[0]["text"])
+            preds, t = run(items, fn)
+            times.append(t)
+            styles = sorted({it.get("style", "all") for it in items})
+            res[(name, split, "all")] = metrics(items, preds)
+            for s in styles:
+                group = [i for i, it in enumerate(items) if it.get("style") == s]
+                res[(name, split, s)] = metrics([items[i] for i in group], [preds[i] for i in group])
+            cov, acc = risk_coverage(items, preds)
+            acted = [g.confident for g in preds]
+            right = [g.intent == it["intent"] for g, it in zip(preds, items)]
+            point = (float(np.mean(acted)), float(np.mean([r for r, a in zip(right, acted) if a] or [np.nan])))
+            curves[(name, split)] = (cov, acc, point)
+            if name == "new" and split == "v2 test":
+                new_preds = preds
+        t = np.concatenate(times) * 1e3
+        latency[name] = {"ms_median": float(np.median(t)), "ms_p99": float(np.percentile(t, 99)), "n": len(t)}
     t0 = time.perf_counter()
-    jg.ground(splits["dev"][0]["text"])
-    first = time.perf_counter() - t0
-    jg.ground(splits["dev"][0]["text"], backend="cues")
-    res = {(b, s): run(items, b) for b in REDUCERS for s, items in splits.items()}
+    jg.ground_many([it["text"] for it in splits["v2 test"]])
+    batched_ms = 1e3 * (time.perf_counter() - t0) / len(splits["v2 test"])
+
     head = semantic_head.load()
+    test = splits["v2 test"]
+    n_motion = sum(it["intent"] != "none" for it in test)
     lines = [
-        f"Semantic reduction on the independently written evaluation set (assets/semantics_eval: "
-        f"test {len(splits['test'])} items, reported only; dev {len(splits['dev'])} items, used for model "
-        "selection and calibration). Each text is grounded alone through `jg.ground`, warm.",
+        f"Selective grounding on the frozen test splits: assets/semantics_eval_v2/test.jsonl ({len(test)} texts: "
+        f"{n_motion} call for a motion in five styles, {len(test) - n_motion} for none) and the plainly worded "
+        f"assets/semantics_eval/test.jsonl ({len(splits['plain test'])}). Never tuned on; dev splits chose and "
+        "calibrated the head. Each text grounded alone, warm, in one run for every reducer.",
         "",
-        "| reducer | split | intent | intensity exact | within one | ECE | confident (coverage) "
-        "| intent acc. when confident | ms / response (median, mean) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "Columns: intent = intent accuracy on motion texts; acted = share of motion texts acted on (confident); "
+        "conf. wrong = acted on with the wrong intent (share of motion texts); none held = share of no-behaviour "
+        "texts not acted on (1 - motions where none was asked); exact / within one = intensity on motion texts; "
+        "ECE = 10 bins of the intent confidence, all texts.",
+        "",
     ]
-    for b, label in REDUCERS.items():
-        for s in splits:
-            r = res[(b, s)]
-            lines.append(
-                f"| {label} | {s} | {r['intent']:.3f} | {r['exact']:.3f} | {r['within_one']:.3f} "
-                f"| {r['ece']:.3f} | {r['coverage']:.3f} | {r['confident_accuracy']:.3f} "
-                f"| {r['ms_median']:.2f}, {r['ms_mean']:.2f} |"
-            )
-    t = res[("embedded", "test")]
+    for split in splits:
+        lines += [
+            f"#### {split}",
+            "",
+            "| reducer | style | n | intent | acted | conf. wrong | none held | exact | within one | ECE |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        styles = [k[2] for k in res if k[0] == "new" and k[1] == split]
+        for name in REDUCERS:
+            for s in styles:
+                r = res[(name, split, s)]
+                lines.append(
+                    f"| {name} | {'**all**' if s == 'all' else s} | {r['n']} | {_fmt(r['intent'])} | {_fmt(r['acted'])} "
+                    f"| {_fmt(r['confident_wrong'])} | {_fmt(r['none_held'])} | {_fmt(r['exact'])} "
+                    f"| {_fmt(r['within_one'])} | {_fmt(r['ece'])} |"
+                )
+        lines.append("")
+    lines += [
+        "#### Latency (2 CPU cores shared with other work; ms per response, each text alone, both test splits)",
+        "",
+        "| reducer | warm median | p99 |",
+        "|---|---|---|",
+        *[f"| {n} | {latency[n]['ms_median']:.2f} | {latency[n]['ms_p99']:.2f} |" for n in REDUCERS],
+        "",
+        f"First `jg.ground` in a fresh process (import, weights, compile or cache load): {np.median(first_warm):.2f} s "
+        f"with the compilation cache warm (median of 3: {', '.join(f'{x:.2f}' for x in first_warm)}), "
+        f"{first_cold:.2f} s with an empty cache. Batched (`jg.ground_many`, v2 test at once): {batched_ms:.2f} ms "
+        "per response.",
+        "",
+    ]
+    t = res[("new", "v2 test", "all")]
+    v2_styles = [k[2] for k in res if k[:2] == ("new", "v2 test") and k[2] != "all"]
+    style_intents = {
+        s: res[("new", "v2 test", s)]["intent"] for s in v2_styles if res[("new", "v2 test", s)]["n_motion"]
+    }
+    worst = min(v for v in style_intents.values() if v is not None)
+    checks = [
+        ("intent >= 0.95 on motion texts in every style", worst >= GOALS["intent"], f"lowest style {worst:.3f}"),
+        (
+            "confident wrong motion <= 3%",
+            t["confident_wrong"] <= GOALS["confident_wrong"],
+            f"{t['confident_wrong']:.3f}",
+        ),
+        ("no-behaviour texts held >= 90%", t["none_held"] >= GOALS["none_held"], f"{t['none_held']:.3f}"),
+        ("intensity exact >= 0.75", t["exact"] >= GOALS["exact"], f"{t['exact']:.3f}"),
+        ("intensity within one >= 0.97", t["within_one"] >= GOALS["within_one"], f"{t['within_one']:.3f}"),
+        ("ECE <= 0.05", t["ece"] <= GOALS["ece"], f"{t['ece']:.3f}"),
+        (
+            "warm median <= 5 ms",
+            latency["new"]["ms_median"] <= GOALS["ms_median"],
+            f"{latency['new']['ms_median']:.2f} ms",
+        ),
+        ("p99 <= 15 ms", latency["new"]["ms_p99"] <= GOALS["ms_p99"], f"{latency['new']['ms_p99']:.2f} ms"),
+        (
+            "first call <= 1.5 s (cache warm)",
+            np.median(first_warm) <= GOALS["first_call_s"],
+            f"{np.median(first_warm):.2f} s",
+        ),
+        (
+            "plain test intent does not fall (new >= old)",
+            res[("new", "plain test", "all")]["intent"] >= res[("old", "plain test", "all")]["intent"],
+            f"{res[('new', 'plain test', 'all')]['intent']:.3f} vs {res[('old', 'plain test', 'all')]['intent']:.3f}",
+        ),
+    ]
+    lines += ["#### Goals (v2 test, the shipped head)", "", "| goal | met | measured |", "|---|---|---|"]
+    lines += [f"| {g} | {'yes' if ok else '**no**'} | {v} |" for g, ok, v in checks]
     lines += [
         "",
-        "Goals on test: intent >= 0.92, intensity within one >= 0.97, exact >= 0.75, <= 10 ms per response. "
-        f"Measured: intent {t['intent']:.3f}, within one {t['within_one']:.3f}, exact {t['exact']:.3f}, "
-        f"{t['ms_median']:.2f} ms median.",
-        f"Trained head: temperature {head.temperature:.2f} and confidence threshold {head.threshold:.2f} "
-        f"fitted on dev (ECE on dev before temperature scaling {head.meta['dev_ece_uncalibrated']:.3f}); "
-        f"config {json.dumps(head.meta['selected'])}; params {head.meta['params_digest']}. "
-        f"First call (weights + compile): {first:.2f} s. ECE: 10 equal-width bins of the intent confidence.",
-        "Baseline ECE is of the cue-list reducer's heuristic confidence, which is not a probability.",
+        f"Shipped head: option `{head.meta.get('selected')}`, temperature {head.temperature:.2f} and confidence "
+        f"threshold {head.threshold:.3f} fitted on v2 dev; params {head.meta['params_digest']}.",
     ]
-    fig = confusion_figure(
-        t["true"],
-        t["pred"],
-        RESULTS / "semantics_confusion.png",
-        f"jg.ground (trained head) on the test split: intent accuracy {t['intent']:.3f}",
+    fig = figure(curves, RESULTS / "semantics_risk_coverage.png")
+    true = [len(INTENTS) if it["intent"] == "none" else INTENTS.index(it["intent"]) for it in test]
+    pred = [
+        INTENTS.index(g.intent) if g.confident or "no behaviour" not in g.reason else len(INTENTS) for g in new_preds
+    ]
+    conf_fig = confusion_figure(
+        true, pred, RESULTS / "semantics_confusion.png", f"jg.ground on the v2 test split (intent {t['intent']:.3f})"
     )
-    lines += ["", f"Confusion matrix (test, trained head): {fig.relative_to(ROOT)}"]
+    lines += ["", f"Risk-coverage curves: {fig.relative_to(ROOT)}; confusion matrix: {conf_fig.relative_to(ROOT)}"]
     print("\n".join(lines))
     write_atomic(RESULTS / "bench_semantics.md", "\n".join(lines) + "\n")
+    payload = {
+        "metrics": {f"{n}|{sp}|{st}": v for (n, sp, st), v in res.items()},
+        "latency": latency,
+        "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
+        "batched_ms_per_response": batched_ms,
+        "goals": {g: {"met": bool(ok), "measured": v} for g, ok, v in checks},
+        "head": {k: head.meta.get(k) for k in ("selected", "temperature", "threshold", "params_digest")},
+        "risk_coverage": {
+            f"{n}|{sp}": {"coverage": c[::4].round(4).tolist(), "accuracy": a[::4].round(4).tolist()}
+            for (n, sp), (c, a, _) in curves.items()
+        },
+    }
+    write_atomic(RESULTS / "bench_semantics.json", json.dumps(payload, indent=1) + "\n")
     return 0
 
 

@@ -26,6 +26,7 @@ __version__ = "0.1.0"
 # Public name -> (module, attribute), resolved lazily.
 _LAZY = {
     "ground": ("jgrounding.semantics", "ground"),
+    "ground_many": ("jgrounding.semantics", "ground_many"),
     "sample": ("jgrounding.generators.sampling", "sample"),
     "load_library": ("jgrounding.library", "load_library"),
     "trunk": ("jgrounding.sim", None),

@@ -6,7 +6,8 @@ cue-list reducer: Eq. (3) with cosine prototypes; the baseline) and ``mllm`` (an
 Eq. (4), falling back to embedded). A configured MLLM also takes over embedded groundings below the
 confidence threshold. Apps do not drive the trunk on a non-confident grounding unless forced: they
 fall back to :data:`HOLD_STILL`.
-``python -m jgrounding.semantics --write-assets`` regenerates ``assets/intent_embeddings.npz``.
+``python -m jgrounding.semantics --write-assets`` regenerates ``assets/intent_embeddings.npz`` and
+``assets/cue_prototypes.npz`` (the cue-list prototypes, so a fresh process does not embed them).
 """
 
 from __future__ import annotations
@@ -19,11 +20,15 @@ from jgrounding.semantics.embedded import (  # noqa: F401  (re-exported)
     ASSET,
     CONFIDENCE_THRESHOLD,
     MAX_CHARS,
+    NUM_POOLS,
+    PROTOTYPES_ASSET,
     compute_intent_embeddings,
+    compute_prototypes,
     embed,
     features,
     ground_cues,
     ground_embedded,
+    ground_embedded_many,
     intent_embeddings,
     intent_scores,
 )
@@ -51,19 +56,7 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
     an embedded grounding below the calibrated confidence threshold is asked of the MLLM instead.
     Empty or non-string input raises; nonsense returns ``confident=False`` with a reason.
     """
-    if not isinstance(text, str):
-        raise TypeError(f"text must be a str, got {type(text).__name__}")
-    if not text.strip():
-        raise ValueError("text is empty; give a response such as 'User seems sad; respond calmly'")
-    if len(text) > MAX_CHARS:
-        text = text[:MAX_CHARS]
-    try:  # the tokenizer (and any server) needs text that encodes as UTF-8
-        text.encode("utf-8")
-    except UnicodeEncodeError as e:
-        raise ValueError(
-            f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
-            "give a str that encodes as UTF-8"
-        ) from None
+    text = _checked(text)
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
     if backend == "cues":
@@ -78,9 +71,57 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
     return mllm.ground_mllm(text, fallback=g, **mllm_options)
 
 
+def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
+    """:func:`ground` of many texts at once, offline (no escalation): one batched encoder pass for the
+    ``embedded`` backend (the evaluation scripts use this), one text at a time for ``cues``.
+
+    Each text is checked as :func:`ground` checks it; the results are in the order given.
+    """
+    if isinstance(texts, str):
+        raise TypeError("ground_many takes a sequence of strings; use ground(text) for one text")
+    if backend not in ("embedded", "cues"):
+        raise ValueError(f"unknown backend {backend!r} for ground_many; valid backends: embedded, cues")
+    texts = [_checked(t) for t in texts]
+    if backend == "cues":
+        return [ground_cues(t) for t in texts]
+    return ground_embedded_many(texts)
+
+
+def warmup(max_tokens: int = 128) -> None:
+    """Load the weights and compile (or load from the compilation cache) the shipped head's programs for every
+    token bucket up to ``max_tokens``, so no later ``ground`` call waits for a compile (servers, benchmarks)."""
+    from jgrounding.semantics import encoder
+    from jgrounding.semantics import head as semantic_head
+
+    head = semantic_head.load()
+    encoder.warmup(max_tokens, pools=NUM_POOLS if head.config.inputs == "structure" else 0)
+    ground_embedded("warm up")
+
+
+def _checked(text) -> str:
+    if not isinstance(text, str):
+        raise TypeError(f"text must be a str, got {type(text).__name__}")
+    if not text.strip():
+        raise ValueError("text is empty; give a response such as 'User seems sad; respond calmly'")
+    if len(text) > MAX_CHARS:
+        text = text[:MAX_CHARS]
+    try:  # the tokenizer (and any server) needs text that encodes as UTF-8
+        text.encode("utf-8")
+    except UnicodeEncodeError as e:
+        raise ValueError(
+            f"text is not valid Unicode: unpaired surrogate {text[e.start]!r} at position {e.start}; "
+            "give a str that encodes as UTF-8"
+        ) from None
+    return text
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description="Semantic reduction utilities.")
-    p.add_argument("--write-assets", action="store_true", help="regenerate assets/intent_embeddings.npz")
+    p.add_argument(
+        "--write-assets",
+        action="store_true",
+        help="regenerate assets/intent_embeddings.npz and assets/cue_prototypes.npz",
+    )
     p.add_argument("text", nargs="*")
     args = p.parse_args(argv)
     if args.write_assets:
@@ -92,6 +133,10 @@ def main(argv=None) -> int:
         np.savez(buf, intent_embeddings=compute_intent_embeddings(), intents=np.array(INTENTS))
         write_atomic(ASSET, buf.getvalue())
         print(f"wrote {ASSET}")
+        buf = io.BytesIO()
+        np.savez(buf, **compute_prototypes())
+        write_atomic(PROTOTYPES_ASSET, buf.getvalue())
+        print(f"wrote {PROTOTYPES_ASSET}")
     for t in args.text:
         print(ground(t))
     return 0

@@ -360,15 +360,48 @@ def intent_embeddings() -> np.ndarray:
     return e.astype(np.float32)
 
 
+PROTOTYPES_ASSET = ASSET.with_name("cue_prototypes.npz")
+
+
+def _prototype_texts() -> tuple[list[str], np.ndarray, list[str]]:
+    texts = _intent_texts()
+    owner = np.repeat(np.arange(len(INTENTS)), [len(g) for g in texts])
+    return (
+        [t for group in texts for t in group],
+        owner,
+        [f"{z}: performed {voc.INTENSITY_DESCRIPTIONS[z]}" for z in INTENSITIES],
+    )
+
+
+def _prototypes_digest() -> str:
+    import hashlib
+
+    intents, _, intensities = _prototype_texts()
+    return hashlib.sha256("\n".join(intents + ["--"] + intensities).encode()).hexdigest()[:16]
+
+
+def compute_prototypes() -> dict:
+    """Embeddings of spec C: intent prototypes ``(K, 384)``, their owner intent ``(K,)``, the intensity
+    descriptions ``(4, 384)`` and the digest of the texts they embed."""
+    intents, owner, intensities = _prototype_texts()
+    return {
+        "prototypes": embed(intents),
+        "owner": owner,
+        "intensities": embed(intensities),
+        "digest": np.array(_prototypes_digest()),
+    }
+
+
 @functools.lru_cache(maxsize=1)
 def _prototypes():
-    """Embeddings of spec C, computed once: intent prototypes ``(K, 384)``, their owner intent ``(K,)``
-    and the four intensity descriptions ``(4, 384)``."""
-    texts = _intent_texts()
-    e = embed([t for group in texts for t in group])
-    owner = np.repeat(np.arange(len(INTENTS)), [len(g) for g in texts])
-    inten = embed([f"{z}: performed {voc.INTENSITY_DESCRIPTIONS[z]}" for z in INTENSITIES])
-    return e, owner, inten
+    """Embeddings of spec C, loaded once from ``assets/cue_prototypes.npz`` (computed when the asset is missing or
+    was made from other cue texts): intent prototypes ``(K, 384)``, their owner ``(K,)``, intensities ``(4, 384)``."""
+    if PROTOTYPES_ASSET.exists():
+        with np.load(PROTOTYPES_ASSET) as f:
+            if str(f["digest"]) == _prototypes_digest():
+                return f["prototypes"], f["owner"], f["intensities"]
+    p = compute_prototypes()
+    return p["prototypes"], p["owner"], p["intensities"]
 
 
 _INTENSIFIERS = {"very", "really", "so", "extremely", "super", "incredibly"}
@@ -461,6 +494,61 @@ def features(texts, use_eq3: bool = True) -> np.ndarray:
     return np.concatenate([emb, np.stack([cue_features(r, t) for r, t in zip(emb, texts)])], axis=1)
 
 
+NUM_POOLS = 4  # the sentence, the chosen part, the rejected part, the quoted words
+STRUCTURE_FEATURES = NUM_POOLS * 384 + 20 + len(INTENTS)  # + structure.NUM_FLAGS
+
+
+def structure_features(texts, batch_size: int = 64) -> np.ndarray:
+    """Inputs of the structure-aware head ``(N, 1556 + NUM_FLAGS)``, one encoder pass per text.
+
+    The encoder's token states are pooled four ways (:func:`jgrounding.semantics.encoder.pool_ids`): the whole
+    sentence, the chosen part (rejected spans left out), the rejected part and the quoted words (zero vectors
+    when there are none); then :func:`cue_features` of the chosen part (Eq. (3) scores and degree cues, so a
+    rejected "wildly" does not count), the Eq. (3) intent scores of the rejected part, and the structure flags
+    (:data:`jgrounding.semantics.structure.FLAGS`). Batched and bucketed like :func:`encoder.embed`.
+    """
+    from jgrounding.semantics import structure
+
+    texts = list(texts)
+    if not texts:
+        return np.zeros((0, STRUCTURE_FEATURES + structure.NUM_FLAGS), np.float32)
+    structs = [structure.analyse(t) for t in texts]
+    return structure_features_from(texts, structs, pooled_embeddings(texts, structs, batch_size))
+
+
+def pooled_embeddings(texts, structs, batch_size: int = 64) -> np.ndarray:
+    """The encoder's four poolings ``(N, 4, 384)`` of each text (see :func:`structure_features`)."""
+    from jgrounding.semantics import encoder
+
+    params = encoder.load_params()
+    enc = encoder.tokenizer().encode_batch(list(texts))
+    pooled = np.zeros((len(texts), NUM_POOLS, encoder.HIDDEN), np.float32)
+    order = np.argsort([len(e.ids) for e in enc], kind="stable")
+    for start in range(0, len(texts), batch_size):
+        idx = order[start : start + batch_size]
+        chunk = [enc[i] for i in idx]
+        rows = next(b for b in (1, 8, batch_size) if b >= len(chunk))
+        length = encoder.bucket_length(max(len(e.ids) for e in chunk))
+        ids, mask = encoder._pad_rows(chunk, length, rows)
+        pools = np.zeros((rows, NUM_POOLS, length), np.float32)
+        pools[:, 0, 0] = 1.0  # padding rows
+        for row, i in enumerate(idx):
+            st = structs[i]
+            pools[row] = encoder.span_pools(enc[i], [("except", st.rejected), st.rejected, st.quoted], length)
+        pooled[idx] = np.asarray(encoder.pool_ids(params, ids, mask, pools))[: len(chunk)]
+    return pooled
+
+
+def structure_features_from(texts, structs, pooled) -> np.ndarray:
+    """:func:`structure_features` from the texts, their structures and :func:`pooled_embeddings`."""
+    out = []
+    for text, st, p in zip(texts, structs, pooled):
+        chosen, rejected = st.chosen_text(text), st.rejected_text(text)
+        rej_scores = intent_scores(p[2], rejected) if st.rejected else np.zeros(len(INTENTS))
+        out.append(np.concatenate([p.reshape(-1), cue_features(p[1], chosen), rej_scores, st.flags]))
+    return np.stack(out).astype(np.float32)
+
+
 def _caveats(text: str) -> list[str]:
     """Reasons, independent of the model, why a text cannot be grounded with confidence."""
     reasons = []
@@ -473,30 +561,61 @@ def _caveats(text: str) -> list[str]:
     return reasons
 
 
+def head_inputs(head, texts) -> np.ndarray:
+    """The input features the shipped head was trained on, for a batch of texts."""
+    if head.config.inputs == "structure":
+        return structure_features(texts)
+    return features(texts, head.config.use_eq3)
+
+
 def ground_embedded(text: str) -> Grounding:
     """Eq. (3) offline with the trained head (:mod:`jgrounding.semantics.head`): argmin over the 16 x 4 tuples
-    of -log p(m | r) - log p(z | r); confident when p(m | r) reaches the threshold calibrated on dev."""
+    of -log p(m | r) - log p(z | r); confident when p(m | r) reaches the threshold calibrated on dev and the
+    text does not read as no behaviour. The reason says why a grounding is not acted on."""
+    return ground_embedded_many([text])[0]
+
+
+def ground_embedded_many(texts, head=None) -> list[Grounding]:
+    """:func:`ground_embedded` of many texts at once (one batched, bucketed encoder pass); ``head``: a loaded
+    :class:`jgrounding.semantics.head.Head` (default: the shipped one)."""
     from jgrounding.semantics import head as semantic_head
 
-    head = semantic_head.load()
-    x = features([text], head.config.use_eq3)
-    p_intent, p_intensity = (np.asarray(a) for a in semantic_head.predict(head.params, x, head.temperature))
+    texts = list(texts)
+    if not texts:
+        return []
+    head = head or semantic_head.load()
+    x = head_inputs(head, texts)
+    p_intent, p_intensity, p_why = (np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature))
+    p_why = p_why if "why_w" in head.params else None
     ms, zs, confs = semantic_head.decide(p_intent, p_intensity)
-    m, z, conf = int(ms[0]), int(zs[0]), float(confs[0])
-    reasons = _caveats(text)
-    if p_intent[0, semantic_head.NONE] > conf:
-        reasons.append(f"reads as no behaviour at all (p = {p_intent[0, semantic_head.NONE]:.2f})")
-    if conf < head.threshold and not reasons:
-        reasons.append(f"confidence {conf:.2f} is below the calibrated threshold {head.threshold:.2f}")
-    return Grounding(
-        intent=INTENTS[m],
-        intensity=INTENSITIES[z],
-        confidence=round(conf, 4),
-        backend="embedded",
-        confident=not reasons,
-        reason="; ".join(reasons),
-        scores=tuple(round(float(p), 4) for p in p_intent[0, : len(INTENTS)]),
-    )
+    out = []
+    for i, text in enumerate(texts):
+        m, z, conf = int(ms[i]), int(zs[i]), float(confs[i])
+        reasons = _caveats(text)
+        p_none = float(p_intent[i, semantic_head.NONE])
+        if p_none > conf:
+            why = "none"
+            if p_why is not None:
+                why = head.meta["reasons"][int(np.argmax(p_why[i]))]
+            text_why = head.meta.get("reason_text", {}).get(why, "no behaviour requested")
+            reasons.append(f"{text_why} (reads as no behaviour, p = {p_none:.2f})")
+        if conf < head.threshold and not reasons:
+            reasons.append(
+                f"low confidence: {INTENTS[m].replace('_', ' ')} at p = {conf:.2f}, below the calibrated "
+                f"threshold {head.threshold:.2f}"
+            )
+        out.append(
+            Grounding(
+                intent=INTENTS[m],
+                intensity=INTENSITIES[z],
+                confidence=round(conf, 4),
+                backend="embedded",
+                confident=not reasons,
+                reason="; ".join(reasons),
+                scores=tuple(round(float(p), 4) for p in p_intent[i, : len(INTENTS)]),
+            )
+        )
+    return out
 
 
 def ground_cues(text: str) -> Grounding:

