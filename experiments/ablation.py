@@ -27,7 +27,7 @@ import jax
 import numpy as np
 
 from jgrounding import library, load_library, semantics, sim
-from jgrounding.evaluation import latency, metrics
+from jgrounding.evaluation import distribution, latency, metrics
 from jgrounding.evaluation import physics as trunk_eval
 from jgrounding.generators import methods
 from jgrounding.training import TrainConfig, checkpoints, distributed
@@ -78,8 +78,43 @@ QUICK = dict(
 
 
 def mean_std(x) -> tuple[float, float]:
-    x = np.asarray(x, float)
-    return float(x.mean()), float(x.std())
+    """Mean and sample std over seeds (ddof = 1)."""
+    return distribution.mean_std(x)
+
+
+def distribution_row(u, intent, intensity, ev, r) -> dict:
+    """Benchmark v3 metrics of ``u (S, N, K, T, C)`` (S seeds or draws) against the evaluation set: per metric
+    ``(mean, std)`` over S and the per-seed values (for tests between methods)."""
+    per = [distribution.score(x, intent, intensity, ev, r=r).summary() for x in u]
+    names = (*distribution.HEADLINE, "frechet", "prec_r_split")
+    return {
+        **{k: mean_std([p[k] for p in per]) for k in names},
+        "per_seed": {k: [float(p[k]) for p in per] for k in names},
+        "std_error": {k: distribution.std_error([p[k] for p in per]) for k in names},
+    }
+
+
+def public_row(lib, cfg, r, current, draws: int = 5) -> dict:
+    """The shipped model exactly as a user calls it: ``jg.sample(key, intents, intensities, num_samples=K,
+    steps=S, current=...)`` over the 64 held-out tuples, ``draws`` keys; distribution metrics per draw."""
+    from jgrounding.generators import sampling
+
+    ho, ev = lib.heldout, lib.evaluation
+    kwargs = {} if current == "default" else {"current": current}
+    u = np.stack(
+        [
+            sampling.sample(
+                jax.random.key(100 + d),
+                list(ho.intent),
+                list(ho.intensity),
+                num_samples=cfg.k_div,
+                steps=cfg.euler_steps,
+                **kwargs,
+            )
+            for d in range(draws)
+        ]
+    )
+    return distribution_row(u, ho.intent, ho.intensity, ev, r)
 
 
 def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
@@ -156,6 +191,9 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             flush=True,
         )
     physics_s = time.perf_counter() - t_lib
+    timing = {"library_simulation_s": physics_s, "train_s": 0.0, "evaluate_s": 0.0, "distribution_s": 0.0}
+    ev = lib.evaluation
+    radius = distribution.radius(ev) if ev is not None else None
     key = jax.random.key(2026)
     todo = list(cfg.methods)
     if cfg.physics_aware and simulate and "tuple_spline_rf" in todo:
@@ -181,6 +219,7 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             )
             rf_trained = trained if method == "tuple_spline_rf" else rf_trained
         train_s = time.perf_counter() - t0
+        timing["train_s"] += train_s
         checkpoints.save(
             Path(cfg.runs) / method,
             trained.params,
@@ -193,9 +232,16 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             },
         )
         cond_eval = heldout_text if raw else intent_emb[lib.heldout.intent]
+        t_eval = time.perf_counter()
         u, r, div, cov, lat_ms, throughput = evaluate(
             method, trained, lib, cfg, cond_eval, jax.random.fold_in(key, len(rows)), mesh
         )
+        timing["evaluate_s"] += time.perf_counter() - t_eval
+        t_dist = time.perf_counter()
+        dist_row = (
+            distribution_row(u, lib.heldout.intent, lib.heldout.intensity, ev, radius) if ev is not None else None
+        )
+        timing["distribution_s"] += time.perf_counter() - t_dist
         phys = physics(u, ref_backbone, tol, cfg.engine) if simulate else NO_PHYSICS
         physics_s += phys["physics_s"]
         samples[method] = u[0]  # seed 0, for the figures
@@ -210,6 +256,8 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             "time_measures": latency.measures(trained),
             "throughput_per_s": throughput,
             "train_s": train_s,
+            "first_sample_success_per_seed": [float(x) for x in succ],
+            "distribution": dist_row,
             **phys,
         }
         per_sample[method] = r
@@ -219,6 +267,23 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             f"{phys['feasible'][0]:.4f} over {phys['samples']} simulated samples ({phys['physics_s']:.0f} s)",
             flush=True,
         )
+    public, dist_refs = {}, {}
+    if ev is not None and cfg.library is None:  # the shipped model through jg.sample, as users call it
+        t_pub = time.perf_counter()
+        public = {name: public_row(lib, cfg, radius, cur) for name, cur in (("default", "default"), ("none", None))}
+        timing["public_s"] = time.perf_counter() - t_pub
+        print(
+            "jg.sample (shipped model): Prec@r default current "
+            f"{fmt(public['default']['prec_r'])}, current=None {fmt(public['none']['prec_r'])}",
+            flush=True,
+        )
+    if ev is not None:
+        t_ref = time.perf_counter()
+        dist_refs = {
+            name: distribution_row(x[None], np.arange(64) // 4, np.arange(64) % 4, ev, radius)
+            for name, x in distribution.reference_samples(lib, k=cfg.k_div).items()
+        }
+        timing["distribution_references_s"] = time.perf_counter() - t_ref
     refs = metrics.reference_baselines(lib, seed=0, draws=max(len(cfg.seeds), 5))
     rng = np.random.default_rng(0)
     ref_phys = {
@@ -244,9 +309,16 @@ def run(cfg: AblationConfig, lib=None) -> dict:
             "rms": (float(np.mean([x.mean() for x in dist[name]])), 0.0),
         }
     physics_s += sum(p["physics_s"] for p in ref_phys.values())
+    timing["physics_s"] = physics_s
+    timing["run_s"] = time.perf_counter() - t_run
     return {
         "config": dataclasses.asdict(cfg),
         "rows": rows,
+        "radius": radius,
+        "public": public,
+        "distribution_references": dist_refs,
+        "library_version": lib.meta.get("library_version"),
+        "timing": timing,
         "references": refs,
         "reference_physics": ref_phys,
         "shape_tolerance": dataclasses.asdict(tol) if tol else None,
@@ -343,6 +415,103 @@ def markdown(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+GOALS = {  # benchmark v3: the shipped model through jg.sample with its defaults
+    "prec_tau": (">=", 0.95),
+    "prec_r": (">=", 0.90),
+    "between": ("<=", 0.05),
+    "mode_cov": (">=", 0.95),
+    "mode_bal": (">=", 0.6),
+    "intent_ret": (">=", 0.97),
+    "intensity_ret": (">=", 0.90),
+    "mm_ratio": ("in", (0.5, 1.5)),
+}
+
+
+def _met(name, v) -> bool:
+    op, x = GOALS[name]
+    return v >= x if op == ">=" else v <= x if op == "<=" else x[0] <= v <= x[1]
+
+
+def distribution_markdown(res: dict) -> str:
+    """The benchmark v3 table: every method, the shipped model through jg.sample, the reference rows."""
+    if not res.get("radius"):
+        return ""
+    cols = distribution.HEADLINE
+    head = "| Row | " + " | ".join(distribution.LABELS[c] for c in cols) + " | Fréchet |"
+    lines = [
+        f"Distribution metrics (benchmark v3) against the evaluation set (library {res.get('library_version')}: "
+        f"16 fresh realizations per tuple, never trained on), all K = {res['config']['k_div']} samples of each "
+        f"of the 64 held-out tuples; r = {res['radius']:.4f} (the {distribution.RADIUS_QUANTILE:.0%} quantile of "
+        f"the evaluation set's nearest same-variant distance), τ = {res['config']['tau']}. Methods: mean ± std "
+        "over training seeds (ddof = 1); jg.sample rows: over 5 sampling keys of the one shipped model; "
+        "reference rows: one draw.",
+        "",
+        head,
+        "|---" * (len(cols) + 2) + "|",
+    ]
+
+    def row(label, d):
+        cells = [f"{d[c][0]:.3f} ± {d[c][1]:.3f}" for c in cols]
+        return f"| {label} | " + " | ".join(cells) + f" | {d['frechet'][0]:.3f} |"
+
+    for m, r in res["rows"].items():
+        if r.get("distribution"):
+            lines.append(row(DISPLAY[m], r["distribution"]))
+    labels = {
+        "default": "jg.sample, shipped model, default current (as users call it)",
+        "none": "jg.sample, current=None",
+    }
+    for name, d in res.get("public", {}).items():
+        lines.append(row(f"**{labels[name]}**", d))
+    for name, d in res.get("distribution_references", {}).items():
+        lines.append(row(f"Reference: {distribution.REFERENCES[name]}", d))
+    lines += [
+        "",
+        "Prec@τ / Prec@r: share of samples within τ / r of some realization of their tuple; Between: within τ "
+        "but farther than r from every one (between the demonstrated motions); ModeCov / ModeBal: on the 32 "
+        "split tuples, share of the two variants that get at least 20% of their fair share of samples within r, "
+        "and the normalized entropy of that split; MM ratio: samples' mean pairwise RMS over the demonstrations'; "
+        "Intent / Intensity ret.: the nearest realization in the whole evaluation set has the asked intent / "
+        "intensity; Fréchet: between Gaussians on every 10th step (information only). Formulas: "
+        "jgrounding/evaluation/distribution.py.",
+    ]
+    pub = res.get("public", {}).get("default")
+    if pub:
+        verdicts = [
+            f"{distribution.LABELS[k]} {pub[k][0]:.3f} ({'met' if _met(k, pub[k][0]) else 'not met'}: goal {GOALS[k][0]} "
+            f"{GOALS[k][1]})"
+            for k in GOALS
+        ]
+        lines += [
+            "",
+            "Shipped model through jg.sample (default current) against the benchmark's goals: "
+            + "; ".join(verdicts)
+            + ".",
+        ]
+        none = res["public"]["none"]
+        lines.append(
+            f"Default path vs current=None on Prec@r: {pub['prec_r'][0]:.3f} vs {none['prec_r'][0]:.3f} "
+            f"(difference {abs(pub['prec_r'][0] - none['prec_r'][0]):.3f}; goal <= 0.03)."
+        )
+    se = {
+        c: max((r["distribution"]["std_error"][c] for r in res["rows"].values() if r.get("distribution")), default=0)
+        for c in ("prec_r", "mode_cov", "intent_ret", "intensity_ret")
+    }
+    lines.append(
+        "Largest standard error over seeds of the headline columns (std / sqrt(seeds)): "
+        + ", ".join(f"{distribution.LABELS[c]} {v:.4f}" for c, v in se.items())
+        + "."
+    )
+    t = res.get("timing", {})
+    if t:
+        lines.append(
+            "Run time by part: "
+            + ", ".join(f"{k.removesuffix('_s').replace('_', ' ')} {v:.0f} s" for k, v in t.items())
+            + "."
+        )
+    return "\n".join(lines) + "\n"
+
+
 def _cmp(a, b) -> str:
     """'higher' / 'lower' when the means differ by more than both stds, else 'tied within std'."""
     if abs(a[0] - b[0]) <= max(a[1], b[1], 1e-9):
@@ -356,10 +525,20 @@ def findings(res: dict) -> list[str]:
     rf, ddpm = r.get("tuple_spline_rf"), r.get("tuple_spline_ddpm")
     cnn = [m for m in r if m.endswith("cnn")]
     if rf and ddpm:
+        c = distribution.compare(rf["first_sample_success_per_seed"], ddpm["first_sample_success_per_seed"])
         out.append(
-            f"RF vs DDPM success: {fmt(rf['success'])} vs {fmt(ddpm['success'])} "
-            f"(RF {_cmp(rf['success'], ddpm['success'])}; the paper: RF higher)."
+            f"RF vs DDPM success (one sample per tuple): {fmt(rf['success'])} vs {fmt(ddpm['success'])}; difference "
+            f"{c['diff']:+.3f}, bootstrap 95% CI [{c['ci95'][0]:+.3f}, {c['ci95'][1]:+.3f}], Welch t = {c['t']:.2f}, "
+            f"p = {c['p']:.3f}: RF {c['verdict']} (the paper: RF higher)."
         )
+        if rf.get("distribution") and ddpm.get("distribution"):
+            for k in ("prec_r", "mode_cov", "intent_ret", "intensity_ret", "mm_ratio"):
+                a, b = rf["distribution"], ddpm["distribution"]
+                c = distribution.compare(a["per_seed"][k], b["per_seed"][k])
+                out.append(
+                    f"RF vs DDPM {distribution.LABELS[k]}: {fmt(a[k])} vs {fmt(b[k])}; difference {c['diff']:+.3f}, "
+                    f"95% CI [{c['ci95'][0]:+.3f}, {c['ci95'][1]:+.3f}], Welch p = {c['p']:.3f}: RF {c['verdict']}."
+                )
         out.append(
             f"RF vs DDPM time: {rf['time_ms']:.3f} vs {ddpm['time_ms']:.3f} ms (RF "
             f"{'faster' if rf['time_ms'] < ddpm['time_ms'] else 'not faster'}; the paper: 4.87 vs 7.86 ms). Both make "
@@ -423,7 +602,11 @@ def write(res: dict, out: str) -> None:
 
     outdir = Path(out)
     md = markdown(res)
-    write_atomic(outdir / "ablation.md", md + "\n" + "\n".join(f"- {f}" for f in findings(res)) + "\n")
+    dist_md = distribution_markdown(res)
+    write_atomic(
+        outdir / "ablation.md",
+        md + "\n" + "\n".join(f"- {f}" for f in findings(res)) + "\n" + ("\n" + dist_md if dist_md else ""),
+    )
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(
@@ -478,10 +661,10 @@ def write(res: dict, out: str) -> None:
 
 def cross_validate(cfg: AblationConfig, folds: int) -> int:
     """Run the ablation once per fold (realization k of every tuple held out) and pool the 4 x 64 targets."""
-    from jgrounding.export import write_atomic
+    from jgrounding.io import write_atomic
 
     t0 = time.perf_counter()
-    base = load_library()
+    base = load_library(cfg.library)
     per_fold = []
     for k in range(folds):
         fcfg = dataclasses.replace(cfg, runs=str(Path(cfg.runs) / f"fold{k}"))
@@ -589,6 +772,8 @@ def main(argv=None) -> int:
     print(markdown(res))
     for f in findings(res):
         print("-", f)
+    print()
+    print(distribution_markdown(res))
     print(
         f"\nphysics (every sample simulated, engine {res['physics_engine']}): {res['physics_s']:.0f} s of the run's "
         f"{res['run_s']:.0f} s ({100 * res['physics_s'] / res['run_s']:.0f}%)"

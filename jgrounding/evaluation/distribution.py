@@ -76,12 +76,12 @@ def _tuples(ev) -> dict[tuple[int, int], np.ndarray]:
     return {(int(k) // 4, int(k) % 4): np.flatnonzero(key == k) for k in np.unique(key)}
 
 
-def radius(ev, quantile: float = RADIUS_QUANTILE) -> float:
+def radius(ev, quantile: float = RADIUS_QUANTILE, from_step: int = 0) -> float:
     """r: the ``quantile`` of each evaluation realization's RMS to its nearest other realization of the same
-    tuple and variant (the within-variant spread)."""
+    tuple and variant (the within-variant spread); ``from_step``: over steps ``from_step:`` only."""
     nn = []
     for idx in _tuples(ev).values():
-        d = rms_matrix(ev.u[idx], ev.u[idx])
+        d = rms_matrix(ev.u[idx, from_step:], ev.u[idx, from_step:])
         same = ev.variant[idx][:, None] == ev.variant[idx][None]
         np.fill_diagonal(same, False)
         nn.extend(np.where(same, d, np.inf).min(axis=1))
@@ -98,14 +98,17 @@ def _pairwise_mean(x) -> float:
 
 def frechet(x, y, stride: int = 10) -> float:
     """Frechet distance between Gaussians fitted to ``x (N, T, C)`` and ``y (M, T, C)`` (every ``stride``-th step)."""
+    import warnings
+
     from scipy import linalg
 
     a = np.asarray(x, np.float64)[:, ::stride].reshape(len(x), -1)
     b = np.asarray(y, np.float64)[:, ::stride].reshape(len(y), -1)
     ma, mb = a.mean(0), b.mean(0)
     ca, cb = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
-    covmean = linalg.sqrtm(ca @ cb)
-    covmean = np.real(covmean)
+    with warnings.catch_warnings():  # rank-deficient covariances (few samples): the estimate is still defined
+        warnings.simplefilter("ignore")
+        covmean = np.real(linalg.sqrtm(ca @ cb))
     return float(np.sum((ma - mb) ** 2) + np.trace(ca + cb - 2.0 * covmean))
 
 
@@ -133,12 +136,22 @@ class Scores:
         return out
 
 
-def score(samples, intent, intensity, ev, r: float | None = None, tau: float = TAU_RMS, with_frechet=True) -> Scores:
+def score(
+    samples, intent, intensity, ev, r: float | None = None, tau: float = TAU_RMS, with_frechet=True, from_step: int = 0
+) -> Scores:
     """Distribution metrics of ``samples (N, K, T, C)`` drawn for tuples ``(intent[n], intensity[n])``
-    against the evaluation set ``ev`` (:class:`jgrounding.library.EvalSet`); ``r`` defaults to :func:`radius`."""
+    against the evaluation set ``ev`` (:class:`jgrounding.library.EvalSet`); ``r`` defaults to :func:`radius`.
+
+    ``from_step > 0`` compares only steps ``from_step:`` (samples and realizations; ``r`` from the same
+    window): how a motion that starts elsewhere (mid-motion, start-conditioned) continues."""
     samples = np.asarray(samples, np.float32)
     if samples.ndim != 4:
         raise ValueError(f"samples must be (N tuples, K, T, C), got shape {samples.shape}")
+    if from_step:
+        import dataclasses as _dc
+
+        samples = samples[:, :, from_step:]
+        ev = _dc.replace(ev, u=ev.u[:, from_step:])
     n, k = samples.shape[:2]
     intent, intensity = np.asarray(intent).reshape(n), np.asarray(intensity).reshape(n)
     r = radius(ev) if r is None else float(r)
@@ -266,9 +279,7 @@ def reference_scores(lib, k: int = 30, seed: int = 2, r: float | None = None) ->
     ev = lib.evaluation
     r = radius(ev) if r is None else r
     tuples = np.array(sorted(_tuples(ev)))
-    return {
-        name: score(x, tuples[:, 0], tuples[:, 1], ev, r=r) for name, x in reference_samples(lib, k, seed).items()
-    }
+    return {name: score(x, tuples[:, 0], tuples[:, 1], ev, r=r) for name, x in reference_samples(lib, k, seed).items()}
 
 
 def bracket_failures(scores: dict[str, Scores]) -> list[str]:

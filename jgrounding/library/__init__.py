@@ -27,4 +27,5 @@ from jgrounding.library.build import (  # noqa: F401  (re-exported: the library'
     save,
     to_bytes,
     variant_midpoint,
+    with_all_pairs,
 )

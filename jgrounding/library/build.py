@@ -90,16 +90,34 @@ class Library:
     evaluation: EvalSet | None = None  # None for a library file without one (an imported library)
 
 
-def _reduce(candidates: np.ndarray, num_controls: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _reduce(
+    candidates: np.ndarray, num_controls: int, returns: np.ndarray | None = None, pin_start: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eq. (ci) and R(c) on the spline basis, in float64 NumPy, then rounded once to float32.
 
-    The same least squares as :func:`splines.fit` / :func:`splines.reconstruct`, but not through XLA's
-    float32 einsum, whose accumulation order depends on the CPU's vector units: that made the library
-    differ in the last bits between machines, and regeneration must be byte-identical everywhere.
+    A demonstration starts from the rest command, so the first control is pinned to rest and the others
+    are the least-squares fit of what remains; the gestures that return (``returns (B,)`` bool) also pin
+    the last control to rest. ``pin_start=False`` (a lab's imported recordings) pins nothing: exactly
+    :func:`splines.fit`. It is the same least
+    squares as :func:`splines.fit` / :func:`splines.reconstruct`, but not through XLA's float32 einsum,
+    whose accumulation order depends on the CPU's vector units: that made the library differ in the last
+    bits between machines, and regeneration must be byte-identical everywhere.
     """
     steps = candidates.shape[-2]
-    pinv, basis = splines.pinv_np(steps, num_controls), splines.basis_np(steps, num_controls)
-    controls = np.einsum("pt,btj->bjp", pinv, candidates.astype(np.float64)).astype(np.float32)
+    basis = splines.basis_np(steps, num_controls)
+    rest = primitives.REST if pin_start else 0.0
+    x = candidates.astype(np.float64) - rest
+    returns = np.zeros(len(x), bool) if returns is None else np.asarray(returns, bool)
+    controls = np.zeros((len(x), x.shape[-1], num_controls))
+    for ret in (False, True):
+        sel = returns == ret
+        if not sel.any():
+            continue
+        free = slice(1 if pin_start else 0, num_controls - 1 if ret else num_controls)
+        b = basis[:, free]
+        pinv = np.linalg.solve(b.T @ b, b.T)
+        controls[sel, :, free] = np.einsum("pt,btj->bjp", pinv, x[sel])
+    controls = (controls + rest).astype(np.float32)
     raw = np.einsum("tp,bjp->btj", basis, controls.astype(np.float64)).astype(np.float32)
     return controls, raw, np.asarray(safety.make_safe(raw))
 
@@ -118,7 +136,8 @@ def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bo
     need = {(m, z, int(v)): int((vs == v).sum()) for (m, z), vs in plan.items() for v in np.unique(vs)}
     rngs = {key: np.random.default_rng([*seed, *key]) for key in need}
     found = {key: [] for key in need}
-    per_round = max(config.candidates_per_round, 2 * max(need.values()))
+    need_max = max(need.values())
+    per_round = max(config.candidates_per_round, need_max + need_max // 4 + 1)
     bar = tqdm(total=config.max_rounds, desc=desc, disable=not progress)
     for _ in range(config.max_rounds):
         todo = [k for k in need if len(found[k]) < need[k]]
@@ -126,7 +145,7 @@ def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bo
             break
         cand = np.stack([primitives.candidate(rngs[k], k[0], k[1], k[2]) for k in todo for _ in range(per_round)])
         keys = np.repeat(np.array(todo), per_round, axis=0)
-        controls, raw, u = _reduce(cand, config.num_controls)
+        controls, raw, u = _reduce(cand, config.num_controls, primitives.RETURNS_MASK[keys[:, 0]])
         checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1])
         for c in screening.CHECKS:
             per_check[c] += int(checks[c].sum())
@@ -425,6 +444,21 @@ def fold(lib: Library, k: int) -> Library:
         )
 
     return dataclasses.replace(lib, train=part(~held), heldout=part(held), meta={**lib.meta, "fold": k})
+
+
+def with_all_pairs(lib: Library) -> Library:
+    """The library with every pair (train and held out) in ``train``: what the shipped model learns from.
+    ``heldout`` stays as it is, so code that reads it still runs; the evaluation set is untouched."""
+    tr, ho = lib.train, lib.heldout
+    merged = Split(
+        **{
+            f.name: (getattr(tr, f.name) + getattr(ho, f.name))
+            if f.name == "texts"
+            else np.concatenate([getattr(tr, f.name), getattr(ho, f.name)])
+            for f in dataclasses.fields(Split)
+        }
+    )
+    return dataclasses.replace(lib, train=merged, meta={**lib.meta, "data": "all"})
 
 
 def variant_midpoint(lib, taus=(0.25, 0.30, 0.35, 0.40, 0.45)) -> dict | None:

@@ -35,6 +35,7 @@ import dataclasses
 
 import numpy as np
 
+from jgrounding.actuation import splines
 from jgrounding.library.signatures import CODE as _CODE
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
@@ -156,7 +157,7 @@ class Variation:
     """Spread of the realizations within one variant (SPEC §3): what a person's repetitions vary."""
 
     onset: float = 0.15  # the motion starts up to this share of the first key interval late (uniform)
-    tempo: float = 0.15  # relative speed, uniform +- (a faster repetition reaches its poses sooner)
+    tempo: float = 0.15  # pace, uniform +-: the gesture's time runs as t ** (1 +- tempo), completed in time
     amplitude: float = 0.10  # relative size of every pull, uniform +-
     jitter: float = 0.05  # per key-pose noise (std), after the rest pose
     tilt: float = 0.15  # intents with one form: extra pull of one lateral tendon (coin): tip tilt
@@ -174,17 +175,18 @@ def candidate(
     num_steps: int = NUM_STEPS,
 ) -> np.ndarray:
     """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``: starts at rest."""
-    from jgrounding.actuation import splines
-
     poses = key_poses(intent, variant, intensity)
     moving = slice(1, None if not RETURNS_MASK[intent] else -1)  # rest stays rest
     if not SPLIT[intent]:
         poses[1 if rng.random() < 0.5 else 3, moving] += variation.tilt * rng.uniform(0.6, 1.0)
     poses[:, moving] = np.clip(poses[:, moving] + rng.normal(0.0, variation.jitter, poses[:, moving].shape), 0, 1)
+    # Onset: the motion starts up to ``onset`` of the first key interval late. Tempo: the pace of the
+    # gesture changes by up to +-``tempo`` (faster early and slower late, or the reverse); either way it is
+    # completed within the trajectory, so a gesture that returns to rest does return.
     onset = rng.uniform(0.0, variation.onset) * KEY_TIMES[1]
-    tempo = 1.0 + rng.uniform(-variation.tempo, variation.tempo)
+    gamma = 1.0 + rng.uniform(-variation.tempo, variation.tempo)
     tau = np.linspace(0.0, 1.0, num_steps)
-    warped = np.clip((tau - onset) * tempo, 0.0, 1.0)
+    warped = np.clip((tau - onset) / (1.0 - onset), 0.0, 1.0) ** gamma
     curve = splines.basis_np(_FINE, poses.shape[1]) @ poses.T  # (_FINE, 4)
     fine = np.linspace(0.0, 1.0, _FINE)
     out = np.stack([np.interp(warped, fine, curve[:, j]) for j in range(curve.shape[1])], axis=-1)
