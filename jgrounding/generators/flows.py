@@ -75,19 +75,31 @@ def _time_features(grid: np.ndarray, embed_time):
     return feats.reshape(grid.shape + feats.shape[-1:]), lambda x, f: f
 
 
-def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None, known=None):
+INPAINT = ("final", "path")
+
+
+def rf_sample(
+    velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None, known=None, inpaint: str = "final"
+):
     """Eq. (rf_inference): integrate dc/dlambda = v from lambda = 0 (noise ``eps``) to 1 in ``steps``.
 
     ``velocity(x, t)`` with ``t`` of shape ``(B,)``; or, with ``embed_time``, ``velocity(x, f)`` with
     ``f = embed_time(t)`` precomputed for every step (see :func:`_time_features`).
 
-    ``known``: ``(mask (D,) or (B, D) bool, c_known (B, D))`` inpaints the masked coordinates of the data:
-    after every step (at flow time lambda) they are set to the straight path ``lambda c_known +
-    (1 - lambda) eps`` of the noise they started from, so at lambda = 1 they equal ``c_known`` exactly and
-    the other coordinates are generated consistent with them (start-conditioned sampling).
+    ``known``: ``(mask (D,) or (B, D) bool, c_known (B, D))`` fixes the masked coordinates of the data to
+    ``c_known`` (start-conditioned sampling: the first Catmull-Rom control is the robot's current command).
+    ``inpaint="final"`` (default) integrates the flow as learned and fixes them at the end: the other
+    controls come from the model's own distribution. ``inpaint="path"`` sets them after every step (at flow
+    time lambda) to the straight path ``lambda c_known + (1 - lambda) eps`` of their noise, so the other
+    coordinates are generated *given* them; that needs a model that saw such starts in training. Library v3
+    starts every demonstration at rest; on it, from a mid-motion command, "path" put 0.51 of the samples
+    within r of a demonstration after the first key moment, "final" 0.98, and samples from rest 0.99
+    (Prec@r of the benchmark, steps 50..149; ``python -m experiments.bench serve``, docs/serving.md).
     """
     if sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(SAMPLERS)}")
+    if inpaint not in INPAINT:
+        raise ValueError(f"unknown inpaint {inpaint!r}; valid: {', '.join(INPAINT)}")
     dt = 1.0 / steps
     grid = (np.arange(steps)[:, None] + np.asarray(_RF_OFFSETS[sampler])[None]) * dt
     feats, as_input = _time_features(grid, embed_time)
@@ -108,6 +120,8 @@ def rf_sample(velocity, eps, steps: int = 50, sampler: str = "euler", embed_time
     if known is None:
         return jax.lax.fori_loop(0, steps, step, eps)
     mask, c_known = known
+    if inpaint == "final":
+        return jnp.where(mask, c_known, jax.lax.fori_loop(0, steps, step, eps))
 
     def inpainted(k, x):
         lam = (k + 1) * dt

@@ -117,12 +117,13 @@ def test_low_confidence_in_a_stream_holds_still(running):
     np.testing.assert_allclose(held, np.broadcast_to(r["start"], held.shape), atol=1e-6)
 
 
-def test_within_r_on_the_library_itself():
+def test_start_quality_metric_on_the_evaluation_set_itself():
     import jgrounding as jg
 
-    lib = jg.load_library()
-    ms, zs = lib.train.intent[:5], lib.train.intensity[:5]
-    own = lib.train.u[:5, None]  # each demonstration is within 0 of itself
-    assert bench_serve.within_r(own, ms, zs, 0.0, lib) == 1.0
+    ev = jg.load_library().evaluation
+    sel = (ev.intent == 9) & (ev.intensity == 1)
+    own = ev.u[sel][None]  # the evaluation realizations of one tuple score themselves perfectly
+    assert bench_serve.prec_r(own, [9], [1]) == 1.0
+    assert bench_serve.prec_r(own, [9], [1], from_step=bench_serve.FIRST_KEY) == 1.0
     far = 1.0 - own  # mirrored commands: far from every realization
-    assert bench_serve.within_r(far, ms, zs, 0.15, lib) < bench_serve.within_r(own, ms, zs, 0.15, lib)
+    assert bench_serve.prec_r(far, [9], [1]) == 0.0
