@@ -474,15 +474,22 @@ def intent_scores(r: np.ndarray, text: str) -> np.ndarray:
 def cue_features(r: np.ndarray, text: str) -> np.ndarray:
     """The cue-list reducer's evidence for one text ``(20,)``: Eq. (3) intent scores (16) and degree cues
     (degree estimate / 3, whether there was one, exclamation marks / 3, shouting)."""
+    return np.concatenate([intent_scores(r, text), degree_features(text)]).astype(np.float32)
+
+
+def degree_features(text: str) -> np.ndarray:
+    """Degree cues ``(4,)``: degree estimate / 3, whether there was one, exclamation marks / 3, shouting."""
     cue = degree_estimate(text)
     shouted = [w for w in re.findall(r"\b[A-Z]{2,}\b", text) if w not in {"OK", "TV", "AI", "ID"}]
-    degree = [
-        1.0 / 3 if cue is None else cue / 3,
-        float(cue is not None),
-        min(text.count("!"), 3) / 3,
-        float(len(shouted) >= 2),
-    ]
-    return np.concatenate([intent_scores(r, text), degree]).astype(np.float32)
+    return np.array(
+        [
+            1.0 / 3 if cue is None else cue / 3,
+            float(cue is not None),
+            min(text.count("!"), 3) / 3,
+            float(len(shouted) >= 2),
+        ],
+        np.float32,
+    )
 
 
 def features(texts, use_eq3: bool = True) -> np.ndarray:
@@ -516,11 +523,12 @@ def structure_features(texts, batch_size: int = 64) -> np.ndarray:
     return structure_features_from(texts, structs, pooled_embeddings(texts, structs, batch_size))
 
 
-def pooled_embeddings(texts, structs, batch_size: int = 64) -> np.ndarray:
-    """The encoder's four poolings ``(N, 4, 384)`` of each text (see :func:`structure_features`)."""
+def pooled_embeddings(texts, structs, batch_size: int = 64, params=None) -> np.ndarray:
+    """The encoder's four poolings ``(N, 4, 384)`` of each text (see :func:`structure_features`); ``params``:
+    encoder weights (default: the frozen MiniLM)."""
     from jgrounding.semantics import encoder
 
-    params = encoder.load_params()
+    params = params or encoder.load_params()
     enc = encoder.tokenizer().encode_batch(list(texts))
     pooled = np.zeros((len(texts), NUM_POOLS, encoder.HIDDEN), np.float32)
     order = np.argsort([len(e.ids) for e in enc], kind="stable")
@@ -539,14 +547,34 @@ def pooled_embeddings(texts, structs, batch_size: int = 64) -> np.ndarray:
     return pooled
 
 
-def structure_features_from(texts, structs, pooled) -> np.ndarray:
-    """:func:`structure_features` from the texts, their structures and :func:`pooled_embeddings`."""
+def structure_features_from(texts, structs, pooled, tuned: bool = False) -> np.ndarray:
+    """:func:`structure_features` from the texts, their structures and :func:`pooled_embeddings`.
+
+    ``tuned``: the inputs of the head trained with the encoder's top layers (:func:`tuned_extras`): the Eq. (3)
+    similarities to the frozen encoder's prototypes are left out (a tuned encoder's embeddings no longer live
+    in their space); what the text names outright (:data:`LEXICAL`) stays."""
     out = []
     for text, st, p in zip(texts, structs, pooled):
+        if tuned:
+            out.append(np.concatenate([p.reshape(-1), tuned_extras(text, st)]))
+            continue
         chosen, rejected = st.chosen_text(text), st.rejected_text(text)
         rej_scores = intent_scores(p[2], rejected) if st.rejected else np.zeros(len(INTENTS))
         out.append(np.concatenate([p.reshape(-1), cue_features(p[1], chosen), rej_scores, st.flags]))
     return np.stack(out).astype(np.float32)
+
+
+def lexical(text: str) -> np.ndarray:
+    """Which intents' actions the text names outright (:data:`LEXICAL`) ``(16,)`` of 0/1."""
+    return np.array([bool(_LEXICAL_RE[m].search(text)) for m in INTENTS], np.float32)
+
+
+def tuned_extras(text: str, st) -> np.ndarray:
+    """The non-encoder inputs of the tuned head ``(36 + NUM_FLAGS,)``: the chosen part's named actions (16) and
+    degree cues (4), the rejected part's named actions (16), the structure flags."""
+    chosen = st.chosen_text(text)
+    rejected = lexical(st.rejected_text(text)) if st.rejected else np.zeros(len(INTENTS), np.float32)
+    return np.concatenate([lexical(chosen), degree_features(chosen), rejected, st.flags]).astype(np.float32)
 
 
 def _caveats(text: str) -> list[str]:
@@ -565,6 +593,13 @@ def head_inputs(head, texts) -> np.ndarray:
     """The input features the shipped head was trained on, for a batch of texts."""
     if head.config.inputs == "structure":
         return structure_features(texts)
+    if head.config.inputs == "tuned":
+        from jgrounding.semantics import structure
+
+        texts = list(texts)
+        structs = [structure.analyse(t) for t in texts]
+        pooled = pooled_embeddings(texts, structs, params=head.encoder_params())
+        return structure_features_from(texts, structs, pooled, tuned=True)
     return features(texts, head.config.use_eq3)
 
 

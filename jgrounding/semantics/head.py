@@ -50,9 +50,14 @@ class HeadConfig:
     inputs: str = ""  # "structure": the structure-aware features; "" : the embedding (+ Eq. (3) if use_eq3)
     num_reasons: int = 0  # classes of the "why no behaviour" head (0: none)
     reason_weight: float = 0.3  # its loss weight
+    tuned_layers: int = 0  # "tuned": how many top encoder layers were trained with the head (shipped as deltas)
 
     @property
     def num_features(self) -> int:
+        if self.inputs == "tuned":
+            from jgrounding.semantics.structure import NUM_FLAGS
+
+            return 4 * EMBED_DIM + 2 * NUM_INTENTS + NUM_DEGREE + NUM_FLAGS
         if self.inputs == "structure":
             from jgrounding.semantics.embedded import STRUCTURE_FEATURES
             from jgrounding.semantics.structure import NUM_FLAGS
@@ -230,10 +235,51 @@ def fit_temperature(logits_fn, intent, grid=np.exp(np.linspace(np.log(0.3), np.l
     return float(grid[int(np.argmin(nll))])
 
 
-def save(path, params: dict, cfg: HeadConfig, meta: dict) -> Path:
+def _flat(tree: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in tree.items():
+        out |= _flat(v, f"{prefix}{k}/") if isinstance(v, dict) else {f"{prefix}{k}": v}
+    return out
+
+
+def _unflat(flat: dict) -> dict:
+    out: dict = {}
+    for k, v in flat.items():
+        *path, leaf = k.split("/")
+        node = out
+        for part in path:
+            node = node.setdefault(part, {})
+        node[leaf] = v
+    return out
+
+
+def top_deltas(top: dict, cfg: HeadConfig) -> dict:
+    """Tuned top encoder layers (stacked like :func:`encoder.load_params`' layers) as float16 differences from
+    the frozen MiniLM's, which is how they are shipped (small, and exact to ~1e-6 of the weights)."""
+    from jgrounding.semantics import encoder
+
+    base = jax.tree.map(lambda x: np.asarray(x[-cfg.tuned_layers :]), encoder.load_params()["layers"])
+    return jax.tree.map(lambda t, b: (np.asarray(t, np.float32) - b).astype(np.float16), top, base)
+
+
+def with_top(deltas: dict, cfg: HeadConfig) -> dict:
+    """The encoder's weights with its top ``cfg.tuned_layers`` layers replaced by base + ``deltas``."""
+    from jgrounding.semantics import encoder
+
+    params = dict(encoder.load_params())
+    k = cfg.tuned_layers
+    params["layers"] = jax.tree.map(
+        lambda b, d: jnp.concatenate([b[:-k], b[-k:] + jnp.asarray(d, jnp.float32)]), params["layers"], deltas
+    )
+    return params
+
+
+def save(path, params: dict, cfg: HeadConfig, meta: dict, top_delta: dict | None = None) -> Path:
+    """Write the head (and the tuned encoder layers' float16 deltas, :func:`top_deltas`) atomically."""
     from jgrounding.io import write_atomic
 
     arrays = {f"param/{k}": np.asarray(v) for k, v in params.items()}
+    arrays |= {f"top/{k}": np.asarray(v) for k, v in _flat(top_delta or {}).items()}
     buf = io.BytesIO()
     np.savez(buf, **arrays, config=json.dumps(dataclasses.asdict(cfg)), meta=json.dumps(meta, sort_keys=True))
     return write_atomic(path, buf.getvalue())
@@ -246,9 +292,16 @@ class Head:
     temperature: float
     threshold: float
     meta: dict
+    encoder: dict | None = dataclasses.field(default=None, compare=False, repr=False)
+
+    def encoder_params(self) -> dict:
+        """The encoder weights this head reads (the frozen MiniLM, or with its tuned top layers)."""
+        from jgrounding.semantics import encoder
+
+        return self.encoder if self.encoder is not None else encoder.load_params()
 
 
-@functools.lru_cache(maxsize=1)
+@functools.lru_cache(maxsize=4)
 def load(path: str | None = None) -> Head:
     """The shipped head (``assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it."""
     path = Path(path or ASSET)
@@ -258,7 +311,9 @@ def load(path: str | None = None) -> Head:
         params = {k.split("/", 1)[1]: jnp.asarray(f[k]) for k in f.files if k.startswith("param/")}
         cfg = HeadConfig(**json.loads(str(f["config"])))
         meta = json.loads(str(f["meta"]))
-    return Head(params, cfg, float(meta["temperature"]), float(meta["threshold"]), meta)
+        deltas = _unflat({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
+    enc = with_top(deltas, cfg) if cfg.tuned_layers else None
+    return Head(params, cfg, float(meta["temperature"]), float(meta["threshold"]), meta, enc)
 
 
 def digest(params: dict) -> str:

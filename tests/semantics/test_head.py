@@ -41,19 +41,7 @@ def test_shipped_head_loads_with_calibration():
     assert sh.digest(head.params) == head.meta["params_digest"]
 
 
-@pytest.mark.parametrize(
-    "text",
-    [
-        "jkl;",
-        "Ctrl-C",
-        pytest.param(
-            "print the invoice",
-            marks=pytest.mark.xfail(
-                reason="the structure-aware head reads it as offering (#24 shortfall)", strict=False
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("text", ["jkl;", "Ctrl-C", "print the invoice"])
 def test_junk_is_not_confident(text):
     g = jg.ground(text)
     assert g.intent in jg.INTENTS and not g.confident and g.reason

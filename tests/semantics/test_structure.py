@@ -3,6 +3,7 @@ still, the compilation cache and the training tool's pieces (tiny data, no long 
 
 from pathlib import Path
 
+import jax
 import numpy as np
 import pytest
 
@@ -111,7 +112,7 @@ def test_low_confidence_reason_names_what_was_understood():
 
 def test_shipped_head_is_structure_aware_with_reasons():
     head = sh.load()
-    assert head.config.inputs == "structure" and head.config.num_reasons == len(head.meta["reasons"])
+    assert head.config.inputs in ("structure", "tuned") and head.config.num_reasons == len(head.meta["reasons"])
     assert set(head.meta["reason_text"]) == set(head.meta["reasons"])
     assert head.meta["comparison"] and head.meta["selected"] in head.meta["comparison"]
 
@@ -161,3 +162,18 @@ def test_training_is_deterministic_and_calibration_meets_its_target(tmp_path):
 
 def test_semantics_module_exports_ground_many():
     assert semantics.ground_many is jg.ground_many
+
+
+def test_tuned_layers_ship_as_float16_deltas_on_the_frozen_encoder():
+    cfg = sh.HeadConfig(inputs="tuned", tuned_layers=2)
+    base = encoder.load_params()
+    top = jax.tree.map(lambda a: np.asarray(a[-2:]) + 0.01, base["layers"])
+    deltas = sh.top_deltas(top, cfg)
+    assert all(d.dtype == np.float16 for d in jax.tree.leaves(deltas))
+    merged = sh.with_top(deltas, cfg)
+    np.testing.assert_allclose(np.asarray(merged["layers"]["q"]["w"][-2:]), top["q"]["w"], atol=1e-5)
+    np.testing.assert_array_equal(
+        np.asarray(merged["layers"]["q"]["w"][:-2]), np.asarray(base["layers"]["q"]["w"][:-2])
+    )
+    flat = sh._flat(deltas)
+    assert "q/w" in flat and sh._unflat(flat).keys() == deltas.keys()
