@@ -23,6 +23,7 @@ from jgrounding import io, safety, training
 from jgrounding.actuation import splines
 from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
 from jgrounding.generators.base import Generator
+from jgrounding.generators.few_step import MeanFlow, Shortcut
 from jgrounding.generators.flows import DDPM, RectifiedFlow
 from jgrounding.generators.networks import CNNRegressor
 from jgrounding.training import checkpoints, distributed
@@ -126,16 +127,22 @@ REGISTRY = {
         MethodSpec("tuple_spline_cnn", "Tuple + Spline + CNN", "tuple", Spline(), Regressor()),
         MethodSpec("tuple_spline_ddpm", "Tuple + Spline + DDPM", "tuple", Spline(), DDPM()),
         MethodSpec("tuple_spline_rf", "Tuple + Spline + RF", "tuple", Spline(), RectifiedFlow()),
+        # Beyond Table II: one-step generators (issue #25, generators/few_step.py)
+        MethodSpec("tuple_spline_meanflow", "Tuple + Spline + MeanFlow", "tuple", Spline(), MeanFlow()),
+        MethodSpec("tuple_spline_shortcut", "Tuple + Spline + Shortcut", "tuple", Spline(), Shortcut()),
     )
 }
-METHODS = tuple(REGISTRY)
+ALL_METHODS = tuple(REGISTRY)
+INPAINTING = (RectifiedFlow, MeanFlow, Shortcut)  # samplers that take ``known`` (start-conditioned sampling)
+METHODS = ALL_METHODS[:5]  # Table II (the ablation's rows); the few-step generators are compared apart
+FEW_STEP = ALL_METHODS[5:]
 DISPLAY = {name: s.display for name, s in REGISTRY.items()}
 
 
 def spec(method: str) -> MethodSpec:
     """The registered :class:`MethodSpec`; ``ValueError`` listing the valid names."""
     if method not in REGISTRY:
-        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(ALL_METHODS)}")
     return REGISTRY[method]
 
 
@@ -265,13 +272,16 @@ def train(
 def check_options(method: str, config: TrainConfig) -> None:
     """``ValueError`` for a generator option that does not apply to ``method``'s generator."""
     generator = spec(method).generator
-    if config.condition_dropout and not isinstance(generator, (RectifiedFlow, DDPM)):
+    if config.condition_dropout and not isinstance(generator, (RectifiedFlow, DDPM, MeanFlow, Shortcut)):
         raise ValueError(
             f"condition_dropout (classifier-free guidance) needs a flow or diffusion generator; "
             f"{method} is a deterministic regressor"
         )
-    if config.time_sampler != "uniform" and not isinstance(generator, RectifiedFlow):
-        raise ValueError(f"time_sampler {config.time_sampler!r} applies to rectified flow; {method} is not RF")
+    if config.time_sampler != "uniform" and not isinstance(generator, (RectifiedFlow, MeanFlow, Shortcut)):
+        raise ValueError(
+            f"time_sampler {config.time_sampler!r} applies to rectified flow and the few-step flows (MeanFlow, "
+            f"shortcut); {method} is none of them"
+        )
 
 
 def reflow(
@@ -385,8 +395,8 @@ def restore(path, method: str | None = None, *, allow_library_mismatch: bool = F
         raise ValueError(why)
     name, num_controls, seeds = meta.get("method"), meta.get("num_controls", 4), meta.get("seeds", [0])
     num_tendons = meta.get("num_tendons", 4)
-    if name not in METHODS:
-        raise ValueError(f"checkpoint {path} names unknown method {name!r}; valid: {', '.join(METHODS)}")
+    if name not in REGISTRY:
+        raise ValueError(f"checkpoint {path} names unknown method {name!r}; valid: {', '.join(ALL_METHODS)}")
     if method is not None and name != method:
         raise ValueError(f"checkpoint {path}: method is {name!r}, expected {method!r}")
     if isinstance(num_controls, bool) or not isinstance(num_controls, int) or not 2 <= num_controls <= 64:
@@ -446,15 +456,14 @@ def actuation(
 
 
 def check_start_conditioning(method: str) -> None:
-    """``ValueError`` unless ``method`` can sample from a given start (a rectified flow over spline controls)."""
+    """``ValueError`` unless ``method`` can sample from a given start (a flow over spline controls whose
+    sampler inpaints: rectified flow, MeanFlow, shortcut)."""
     s = spec(method)
-    if not (
-        isinstance(s.generator, RectifiedFlow) and isinstance(s.representation, Spline) and not s.generator.sequence
-    ):
+    if not (isinstance(s.generator, INPAINTING) and isinstance(s.representation, Spline) and not s.generator.sequence):
         capable = ", ".join(
             n
             for n, m in REGISTRY.items()
-            if isinstance(m.generator, RectifiedFlow) and isinstance(m.representation, Spline)
+            if isinstance(m.generator, INPAINTING) and isinstance(m.representation, Spline)
         )
         raise ValueError(
             f"start-conditioned sampling inpaints the first spline control of a rectified flow; {method} is not "
