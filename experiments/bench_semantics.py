@@ -217,6 +217,7 @@ def main(argv=None) -> int:
     for fn in fns.values():
         fn(splits["v2 test"][0]["text"])
     res, curves, latency = {}, {}, {}
+    load = os.getloadavg()
     for name, fn in fns.items():
         times = []
         for split, items in splits.items():
@@ -274,7 +275,8 @@ def main(argv=None) -> int:
                 )
         lines.append("")
     lines += [
-        "#### Latency (2 CPU cores shared with other work; ms per response, each text alone, both test splits)",
+        f"#### Latency (ms per response, each text alone, both test splits; 2 CPU cores shared with other work: "
+        f"load average {load[0]:.1f} before and {os.getloadavg()[0]:.1f} after the timed runs)",
         "",
         "| reducer | warm median | p99 |",
         "|---|---|---|",
@@ -341,6 +343,7 @@ def main(argv=None) -> int:
     payload = {
         "metrics": {f"{n}|{sp}|{st}": v for (n, sp, st), v in res.items()},
         "latency": latency,
+        "load_average": [load[0], os.getloadavg()[0]],
         "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
         "batched_ms_per_response": batched_ms,
         "goals": {g: {"met": bool(ok), "measured": v} for g, ok, v in checks},

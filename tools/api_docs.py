@@ -136,6 +136,8 @@ def render() -> str:
         "## Grounding (text -> tuple)",
         "",
         function("jg.ground", semantics.ground),
+        function("jg.ground_many", semantics.ground_many),
+        function("jgrounding.semantics.warmup", semantics.warmup),
         record("Grounding", semantics.Grounding),
         '`**mllm_options` of `jg.ground(..., backend="mllm")` are the keyword arguments of '
         "`jgrounding.semantics.mllm.ground_mllm` (see [mllm.md](mllm.md)):",
