@@ -23,7 +23,7 @@ import numpy as np
 from flax import nnx
 
 from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
-from jgrounding.generators.flows import sample_flow_time
+from jgrounding.generators.flows import INPAINT, sample_flow_time
 from jgrounding.generators.networks import TwoTimeMLP
 
 MEANFLOW_JUMP_SHARE = 0.25  # share of examples with s != t (the paper's best; the rest is flow matching)
@@ -88,15 +88,17 @@ def shortcut_loss(shortcut, c, key, *, time_sampler: str = "uniform"):
     return jnp.mean((shortcut(z, t, two_d) - target) ** 2)
 
 
-def jump_sample(network, eps, times, seconds, embed_time=None, known=None):
+def jump_sample(network, eps, times, seconds, embed_time=None, known=None, inpaint: str = "final"):
     """``x <- x + (t_{k+1} - t_k) net(x, t_k, second_k)`` from lambda = 0 (noise ``eps (B, D)``) to 1.
 
     ``times``: the ``S + 1`` static flow times ``(S + 1,)`` (numpy); ``seconds``: the second input of
     each jump ``(S,)``. With ``embed_time(t (S,), s (S,)) -> (S, F)`` (a model's share of its first
     layer) the network is called as ``net(x, f)``, the features computed once before the loop;
-    otherwise as ``net(x, t (B,), s (B,))``. ``known``: ``(mask, c_known)`` inpaints the masked
-    coordinates as :func:`jgrounding.generators.flows.rf_sample` does.
+    otherwise as ``net(x, t (B,), s (B,))``. ``known``: ``(mask, c_known)`` fixes the masked
+    coordinates as :func:`jgrounding.generators.flows.rf_sample` does (``inpaint`` "final" or "path").
     """
+    if inpaint not in INPAINT:
+        raise ValueError(f"unknown inpaint {inpaint!r}; valid: {', '.join(INPAINT)}")
     times = np.asarray(times, np.float32)
     steps = len(times) - 1
     dts, ends = jnp.asarray(np.diff(times)), jnp.asarray(times[1:])
@@ -109,12 +111,13 @@ def jump_sample(network, eps, times, seconds, embed_time=None, known=None):
         else:
             v = network(x, feats[k])
         x = x + dts[k] * v
-        if known is None:
+        if known is None or inpaint == "final":
             return x
         mask, c_known = known
         return jnp.where(mask, ends[k] * c_known + (1.0 - ends[k]) * eps, x)
 
-    return jax.lax.fori_loop(0, steps, step, eps)
+    out = jax.lax.fori_loop(0, steps, step, eps)
+    return out if known is None else jnp.where(known[0], known[1], out)
 
 
 class _Jump:
