@@ -19,6 +19,7 @@ from jgrounding.apps.plotting import plot_tendons, plt, save
 from jgrounding.evaluation import metrics
 from jgrounding.io import write_atomic
 from jgrounding.library import primitives, screening
+from jgrounding.sim import model as trunk_model
 from jgrounding.sim import render
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe
 
@@ -149,6 +150,39 @@ def axis_figure(lib, m: int, path):
     return save(fig, path, dpi=80, colors=256)
 
 
+def tip_paths_figure(lib, path):
+    """The simulated tip path of every realization, per intent (rows) and intensity (columns), from the side
+    (x toward the user, z up) and from behind (y to the robot's left, z up); a dot marks where it ends."""
+    u, intent, intensity, variant = _records(lib)
+    tip = sim.rollout(u, engine="native").tip  # (N, T, 3)
+    rest = sim.BASE_POSITION - np.array([0.0, 0.0, trunk_model.TRUNK_LENGTH])
+    fig, axes = plt.subplots(
+        len(INTENTS), 2 * len(INTENSITIES), figsize=(13, 1.45 * len(INTENTS)), sharex=True, sharey=True
+    )
+    colors = ("tab:blue", "tab:orange")
+    for m in range(len(INTENTS)):
+        for z in range(len(INTENSITIES)):
+            for view, (i, label) in enumerate(((0, "side"), (1, "rear"))):
+                ax = axes[m, 2 * z + view]
+                for k in np.flatnonzero((intent == m) & (intensity == z)):
+                    xy = tip[k][:, [i, 2]] - rest[[i, 2]]
+                    ax.plot(xy[:, 0], xy[:, 1], color=colors[variant[k]], lw=0.8)
+                    ax.plot(*xy[-1], "o", color=colors[variant[k]], ms=2)
+                ax.plot(0, 0, "k+", ms=4)
+                ax.tick_params(labelsize=5)
+                if m == 0:
+                    ax.set_title(f"{INTENSITIES[z]} · {label}", fontsize=7)
+                if z == 0 and view == 0:
+                    ax.set_ylabel(INTENTS[m], fontsize=7)
+    fig.suptitle(
+        "Simulated tip paths (m from the rest tip, +): side view x → toward the user, rear view y → robot's left; "
+        "blue variant A, orange variant B; dot: where it ends",
+        fontsize=8,
+    )
+    fig.tight_layout(rect=(0, 0, 1, 0.99))
+    return save(fig, path, dpi=70, colors=64)
+
+
 def brackets_table(b: dict) -> str:
     from experiments.references import table
 
@@ -163,6 +197,7 @@ def write(lib=None) -> Path:
     out = DOCS / "library"
     acceptance_figure(lib.meta, out / "acceptance.png")
     distance_figure(lib, out / "rms_distributions.png")
+    tip_paths_figure(lib, out / "tip_paths.png")
     for m in range(len(INTENTS)):
         intent_figure(lib, m, CARD_INTENSITY, out / f"intent_{INTENTS[m]}.png")
         axis_figure(lib, m, out / f"axis_{INTENTS[m]}.png")
@@ -176,11 +211,8 @@ def write(lib=None) -> Path:
             f"\n\n**Beside the brackets: a hedge.** On the {mid['tuples']} one-to-many tuples, the midpoint of the two "
             "variants' training means (weighted equally) succeeds "
             + ", ".join(f"{v:.3f} at τ = {t:.2f}" for t, v in mid["success"].items())
-            + ". The variants are ≈ 0.6 RMS apart (mirror images with P = 4 controls cannot be much farther: a sustained "
-            "full left/right difference is ≈ 0.67), so their midpoint lies within τ = 0.35 of both. The tuple mean fails "
-            "only because the training split is 1 + 2 (it sits 2/3 of the way to the other variant); a generator that "
-            "hedges between the variants succeeds. Success at τ = 0.35 therefore rewards covering the variants *or* "
-            "hedging between them; coverage and diversity tell the two apart."
+            + ". A generator that hedges between the variants passes the one-sample metric; the distribution metrics "
+            "(Prec@r, ModeCov) put the hedge at 0."
         )
     )
     variants = "\n".join(f"- **{m}**: {why}." for m, why in primitives.VARIANTS.items())
@@ -205,36 +237,40 @@ realization per tuple). Regenerate with `{card["regenerate"]}` (seed {card["conf
 byte-identical for a seed.
 
 **Design** (Sec. III-C.1, SPEC §3; library version `{card.get("library_version", "1")}`, content sha256
-`{card.get("content_sha256", "")[:16]}…`). A trajectory is four tendon pulls at four key moments, built from the elephant
-primitives (bending toward a side, curling, co-contraction retraction, release/extension, compliant contact).
+`{card.get("content_sha256", "")[:16]}…`). The realizations look like recordings of a real trunk. Every one starts
+from the rest command (every tendon slack) and either returns to rest — the oscillating gestures
+({", ".join(primitives.RETURNS)}) — or holds its last pose (pointing holds, withdrawal stays away, farewell ends
+retracted). A gesture is three key poses after rest, written per intent from SPEC §2 with the elephant primitives
+(bending toward a side, curling, co-contraction, release, compliant contact; `primitives._ANCHORS`).
 
 *One-to-many.* {len(primitives.VARIANTS)} intents have two distinct valid variants, anchored on mirror images across the
-sagittal plane (variant B starts as variant A with the left and right tendons swapped; the refinement then moves each
-variant on its own); each of their tuples has 2 realizations of
-each variant (2 + 2), so the tuple mean is neither:
+sagittal plane; each of their tuples has 2 realizations of each variant (2 + 2), and the evaluation set 8 + 8:
 
 {variants}
 
-The others ({single}) have one form plus a small left/right tilt of the tip: a mirror of a symmetric motion is itself,
-and the swing's or the refusal's other phase is only ≈ 0.4 RMS away with P = 4 controls (the spline smooths the
-alternation) — far enough that a replay of it fails, close enough that a mean survives, which would make the tuple
-mean beat replay; we kept one phase.
+The others ({single}) have one form plus a small left/right tilt of the tip.
 
-*Intensity is an axis, not a scaling toward rest.* Each variant has a subtle end — the motion kept back near the
-robot's body by the antagonist tendon (a respectful distance), little reach in the intent's own direction, the key
-poses half a key moment late (slow onset) — and an emphatic end — full reach toward the user (or away, for
-withdrawal, coiling, resting, refusing), slack tendons co-contracted (stiffer, more curvature), on time. Moderate and
-pronounced are 1/3 and 2/3 of the way. So the intensities differ in *where* the motion goes, and the intents stay
-apart at every intensity. The ends were refined into a code (`python -m tools.design_signatures`,
-`jgrounding/library/signatures.py`) in which two intents at one intensity, two variants, and two intensity levels two
-apart are far in RMS while each anchor keeps its defining pulls. A candidate interpolates the key poses
-(cosine-eased) with per-realization amplitude (±{var.amplitude:.0%}), timing (±{var.timing:.2f}) and key-pose noise
-(σ {var.jitter:.2f}). Candidates are reduced by Eq. (ci) to P = {card["config"]["num_controls"]} Catmull–Rom controls,
-reconstructed, passed through the safety gate, and screened: bounds and slew, smoothness (jerk), simulation on the trunk
-(stable, contact force ≤ {sim.MAX_CONTACT_FORCE} N, tip ≤ {sim.MAX_TIP_SPEED_NEAR_USER} m/s within
-{sim.NEAR_USER_DISTANCE} m of the user), and a semantic rule on the simulated shape per intent, graded by intensity
-(contact and reach only where the intensity calls for them; subtle motions keep their distance;
-`jgrounding/library/screening.py`).
+*Intensity is pull and tempo.* The emphatic end of a gesture is written as it is; the subtle end pulls
+{primitives.SUBTLE_SCALE:.0%} as hard and reaches each key pose one key moment later (slower); moderate and pronounced
+are 1/3 and 2/3 of the way. The ends were refined, within {__import__("tools.design_signatures").design_signatures.TRUST}
+of each written pull, so that two intents at one intensity, two variants and two intensity levels two apart are as
+far apart in RMS as the gestures allow (`python -m tools.design_signatures`, `jgrounding/library/signatures.py`).
+
+*Within a variant* realizations vary as a person's repetitions do: onset up to {var.onset:.0%} of the first key
+interval late, pace ±{var.tempo:.0%} (the gesture is still completed), amplitude ±{var.amplitude:.0%}, key-pose noise
+σ {var.jitter:.2f}. Candidates are reduced by Eq. (ci) to P = {card["config"]["num_controls"]} Catmull–Rom controls
+with the first control pinned to rest (and the last one too for the gestures that return), reconstructed, passed
+through the safety gate, and screened: bounds and slew, smoothness (jerk), simulation on the trunk (stable, contact
+force ≤ {sim.MAX_CONTACT_FORCE} N, tip ≤ {sim.MAX_TIP_SPEED_NEAR_USER} m/s within {sim.NEAR_USER_DISTANCE} m of the
+user), and each intent's kinematic signature on the simulated tip path, graded by intensity (greeting rises and waves;
+withdrawal ends farther from the user than it started; nodding moves in the sagittal plane, refusing in the lateral
+one; `jgrounding/library/screening.py`; checked over the whole library by `tests/library/test_signatures.py`).
+
+*Evaluation set.* {card.get("num_eval", 0)} further realizations (16 per tuple, balanced across variants), drawn
+and screened the same way with another seed and stored in the same file: the benchmark's distribution metrics score
+samples against them (`jgrounding/evaluation/distribution.py`); nothing is trained on them.
+
+![tip paths](library/tip_paths.png)
 
 *Held-out responses.* The held-out record of each tuple takes its response texts from a separate pool of situations,
 plans and intensity phrasings (`jgrounding/library/responses.py`, `HELDOUT_*`) never used for a training pair.
@@ -246,10 +282,13 @@ plans and intensity phrasings (`jgrounding/library/responses.py`, `HELDOUT_*`) n
 
 ![acceptance](library/acceptance.png)
 
-**Brackets of the metric** (`python -m experiments.references`): expected success over the library (every replay
-in each pool against each held-out target, no sampling), at every τ of the sweep. SPEC §3 ranges at τ = 0.35: oracle
-0.45–0.92, tuple mean ≥ 0.10 below the oracle, wrong intent ≤ 0.10, far intensity ≤ 0.30, adjacent ≤ 0.80 —
-{"all met" if not bad else "NOT met: " + "; ".join(bad)}.
+**Brackets of the paper-protocol metric** (`python -m experiments.references`): expected success of one replay
+against the held-out target over the library (every replay in each pool, no sampling), at every τ of the sweep. SPEC
+§3 ranges at τ = 0.35: oracle 0.45–0.92, tuple mean ≥ 0.10 below the oracle, wrong intent ≤ 0.10, far intensity ≤
+0.30, adjacent ≤ 0.80 — {"all met" if not bad else "NOT met: " + "; ".join(bad)}. On library v3 every motion starts
+at rest and a subtle motion is small, so different intents and far intensities come within τ of each other: the
+one-sample metric no longer separates them, and the benchmark's distribution metrics (reference rows in
+results/references.md) carry the ranking.
 
 {brackets_table(b)}{hedge}
 
