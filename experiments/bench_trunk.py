@@ -8,7 +8,7 @@ compile time cold (empty persistent cache) and again in a fresh process with the
 physics steps/s for each batch size on both engines, as ratios, and the tip agreement of the two.
 MJX runs every batch as padded chunks of ``--chunk`` so one compiled program serves all sizes.
 Then, for the ablation's batch (K_div x 64 = 1,920 trajectories per method and seed), simulated
-trajectories per second on each engine through :func:`jgrounding.physics.simulate_samples` (what the
+trajectories per second on each engine through :func:`jgrounding.evaluation.physics.simulate_samples` (what the
 ablation calls), which engine ``"auto"`` picks here, and the share of ``make ablation`` that physics
 takes: measured, from the last run's results/ablation.json, and predicted from this rate.
 Writes results/bench_trunk.md.

@@ -29,8 +29,8 @@ _LAZY = {
     "ground_many": ("jgrounding.semantics", "ground_many"),
     "sample": ("jgrounding.generators.sampling", "sample"),
     "load_library": ("jgrounding.library", "load_library"),
-    "trunk": ("jgrounding.sim", None),
-    "sim": ("jgrounding.sim", None),
+    "sim": ("jgrounding.sim", None),  # the trunk simulation, named like its package (jgrounding.sim)
+    "trunk": ("jgrounding.sim", None),  # an older alias of jg.sim, kept so existing code keeps working
 }
 
 __all__ = ["INTENTS", "INTENSITIES", "describe", "intent_index", "intensity_index", "splines", "safety", *_LAZY]

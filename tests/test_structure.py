@@ -1,8 +1,11 @@
-"""The package's shape (issue #12): no import cycles between modules, no private names across modules,
-a shared-utility module that imports nothing of the package, and atomic writes that keep file modes."""
+"""The package's shape (issues #12, #22): no import cycles between modules, no private names across modules,
+a shared-utility module that imports nothing of the package, atomic writes that keep file modes, layers that
+import downward only, and no name (an import, a ``python -m`` command, a dotted path in the docs or a docstring)
+that points at a module or attribute that does not exist."""
 
 import ast
 import os
+import re
 import stat
 from pathlib import Path
 
@@ -101,3 +104,310 @@ def test_write_atomic_keeps_the_file_mode(tmp_path):
     assert stat.S_IMODE(target.stat().st_mode) == 0o640 and target.read_bytes() == b"new"
     io.write_atomic(target, "x", mode=0o600)
     assert stat.S_IMODE(target.stat().st_mode) == 0o600
+
+
+# --- Names that must exist (issue #22: `experiments/ablation.py --folds 4` imported the moved
+# `jgrounding.export`, and the old check skipped imports of modules it did not know) ----------------------
+
+OURS = ("jgrounding", "experiments", "tools")
+
+
+def _all_modules() -> dict[str, Path]:
+    mods = {}
+    for d in OURS:
+        for p in (ROOT / d).rglob("*.py"):
+            mods[".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")] = p
+    return mods
+
+
+def _lazy(tree) -> dict[str, tuple[str, str | None]]:
+    """A package's ``_LAZY = {public name: (module, attribute)}`` (resolved by its ``__getattr__``)."""
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "_LAZY" for t in node.targets):
+            return ast.literal_eval(node.value)
+    return {}
+
+
+_DEFINED: dict[Path, set[str]] = {}
+
+
+def _defined(path: Path) -> set[str]:
+    """Names a module defines at import time (functions, classes, assignments, imports, also inside top-level
+    ``if``/``try`` blocks), ``Class.member`` for class bodies, and its ``_LAZY`` public names."""
+    if path not in _DEFINED:
+        tree = ast.parse(path.read_text())
+        out = set(_lazy(tree))
+
+        def visit(body, prefix=""):
+            for n in body:
+                if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                    out.add(prefix + n.name)
+                    if isinstance(n, ast.ClassDef) and not prefix:
+                        visit(n.body, n.name + ".")
+                elif isinstance(n, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+                    for t in n.targets if isinstance(n, ast.Assign) else [n.target]:
+                        out.update(prefix + x.id for x in ast.walk(t) if isinstance(x, ast.Name))
+                elif isinstance(n, (ast.Import, ast.ImportFrom)) and not prefix:
+                    out.update((a.asname or a.name).split(".")[0] for a in n.names)
+                elif isinstance(n, (ast.If, ast.Try, ast.With, ast.For)):
+                    visit(n.body + getattr(n, "orelse", []) + getattr(n, "finalbody", []), prefix)
+                    for h in getattr(n, "handlers", []):
+                        visit(h.body, prefix)
+
+        visit(tree.body)
+        _DEFINED[path] = out
+    return _DEFINED[path]
+
+
+def _resolves(ref: str, mods) -> bool:
+    """``a.b.c``: a module, or a module's attribute (``module.name`` or ``module.Class.member``)."""
+    parts = ref.split(".")
+    for i in range(len(parts), 0, -1):
+        mod = ".".join(parts[:i])
+        if mod in mods:
+            rest = parts[i:]
+            return not rest or ".".join(rest[:2]) in _defined(mods[mod]) or rest[0] in _defined(mods[mod])
+    return False
+
+
+def _import_targets(path: Path, mods):
+    """(line, dotted target) for every import of our packages in ``path``, lazy ones inside functions too:
+    ``import a.b`` -> ``a.b``; ``from a import b`` -> ``a.b`` (module or attribute);
+    ``importlib.import_module("a.b")`` -> ``a.b``."""
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            if node.module.split(".")[0] in OURS:
+                for a in node.names:
+                    yield node.lineno, node.module if a.name == "*" else f"{node.module}.{a.name}"
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] in OURS:
+                    yield node.lineno, a.name
+        elif (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and node.func.attr == "import_module"
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and str(node.args[0].value).split(".")[0] in OURS
+        ):
+            yield node.lineno, node.args[0].value
+
+
+def _python_files():
+    yield from _all_modules().values()
+    yield from (ROOT / "tests").rglob("*.py")
+
+
+def test_every_import_names_a_module_or_attribute_that_exists():
+    mods = _all_modules()
+    missing = [
+        f"{p.relative_to(ROOT)}:{line}: {target}"
+        for p in _python_files()
+        for line, target in _import_targets(p, mods)
+        if not _resolves(target, mods)
+    ]
+    root_lazy = _lazy(ast.parse((PKG / "__init__.py").read_text()))
+    missing += [
+        f"jgrounding/__init__.py _LAZY[{name!r}]: {module}.{attr}"
+        for name, (module, attr) in root_lazy.items()
+        if not _resolves(module if attr is None else f"{module}.{attr}", mods)
+    ]
+    assert not missing, "imports of modules or names that do not exist:\n" + "\n".join(missing)
+
+
+def _text_files():
+    yield ROOT / "README.md"
+    yield ROOT / "Makefile"
+    yield from sorted((ROOT / "docs").rglob("*.md"))
+    yield from _python_files()
+
+
+def test_module_commands_in_docs_and_code_exist():
+    """Every ``python -m <module>`` (``$(PY) -m`` in the Makefile) in the README, docs, Makefile, code and tests names a runnable module."""
+    mods = _all_modules()
+    bad = []
+    for f in _text_files():
+        for i, line in enumerate(f.read_text().splitlines(), 1):
+            for m in re.finditer(r"(?:python3?|\$\(PY\)) -m ((?:jgrounding|experiments|tools)[\w.]*)", line):
+                name = m.group(1).rstrip(".")
+                if name not in mods and f"{name}.__main__" not in mods:
+                    bad.append(f"{f.relative_to(ROOT)}:{i}: python -m {name}")
+    assert not bad, "commands that name a module that does not exist:\n" + "\n".join(bad)
+
+
+def test_dotted_names_in_docs_and_docstrings_resolve():
+    """``jgrounding.x.y`` / ``experiments.x`` / ``tools.x`` written anywhere (README, docs, docstrings, comments,
+    logger names shown in docs) names a module or an attribute of one. Patterns such as
+    ``experiments.bench_<name>`` are not names."""
+    mods = _all_modules()
+    pattern = re.compile(r"(?<![\w/.-])((?:jgrounding|experiments|tools)(?:\.[A-Za-z_]\w*)+)(?![\w<*{])")
+    bad = []
+    for f in _text_files():
+        if f == Path(__file__).resolve():
+            continue  # its examples name modules that do not exist on purpose
+        for i, line in enumerate(f.read_text().splitlines(), 1):
+            for m in pattern.finditer(line):
+                ref = m.group(1)
+                if re.search(r"\.(py|md|npz|json|txt|csv|png|gif|xml|html)$", ref) or ref.endswith("_"):
+                    continue  # a file name, or a name pattern
+                if not _resolves(ref, mods):
+                    bad.append(f"{f.relative_to(ROOT)}:{i}: {ref}")
+    assert not bad, "dotted names that point nowhere (moved or renamed?):\n" + "\n".join(bad)
+
+
+# --- Layers run one way (issue #22) --------------------------------------------------------------------------
+# base (the package root, its shared utilities, sim, actuation, semantics, library) -> generators -> training
+# -> evaluation -> apps / serve / client / experiments / tools. A module imports from its own layer or below;
+# lazy imports inside functions count. ``from jgrounding import sample`` and ``jg.sample`` count as what the
+# root's lazy table resolves them to.
+
+LAYERS = {
+    "jgrounding": 0,  # the root package: its eager imports are base modules; its lazy names are the facade
+    "jgrounding.io": 0,
+    "jgrounding.vocabulary": 0,
+    "jgrounding.config": 0,
+    "jgrounding.safety": 0,
+    "jgrounding.sim": 0,
+    "jgrounding.actuation": 0,
+    "jgrounding.semantics": 0,
+    "jgrounding.library": 0,
+    "jgrounding.generators": 1,
+    "jgrounding.training": 2,
+    "jgrounding.evaluation": 3,
+    "jgrounding.apps": 4,
+    "jgrounding.serve": 4,
+    "jgrounding.client": 4,
+    "jgrounding.__main__": 4,
+    "experiments": 4,
+    "tools": 4,
+}
+LAYER_NAMES = ("base", "generators", "training", "evaluation", "apps/experiments/tools")
+
+# Today's known upward imports: (importer, imported module) -> why it is there. Each is a debt that issue #22's
+# refactor (a trained model that owns its sampling; training, restore and screening moved down or up) removes;
+# remove the entry with it. A NEW upward import fails the test; so does an entry that no longer occurs.
+KNOWN_UPWARD = {
+    ("jgrounding.generators.methods", "jgrounding.training"): (
+        "methods.train / reflow live in the registry module and call the training loop (train_state, EMA, mesh)"
+    ),
+    ("jgrounding.generators.methods", "jgrounding.training.checkpoints"): (
+        "methods.restore / save_trained read and write checkpoints beside the registry"
+    ),
+    ("jgrounding.generators.methods", "jgrounding.training.distributed"): (
+        "methods.train / generate shard seeds and samples over a device mesh"
+    ),
+    ("jgrounding.generators.sampling", "jgrounding.training.checkpoints"): (
+        "jg.sample restores the shipped checkpoint and checks its library (sampling.check_library)"
+    ),
+    ("jgrounding.generators.sampling", "jgrounding.evaluation.physics"): (
+        "sampling.screened (jg.sample(..., screen=True)) simulates candidates with the physics evaluation"
+    ),
+    ("jgrounding.training.physics", "jgrounding.evaluation.physics"): (
+        "physics-aware fine-tuning screens its candidates with the physics evaluation"
+    ),
+    ("jgrounding.library.build", "jgrounding.evaluation.metrics"): (
+        "library.bracket_distances (the reference brackets) measures RMS with evaluation.metrics.rms"
+    ),
+}
+
+
+def _layer(module: str) -> int:
+    parts = module.split(".")
+    for i in range(len(parts), 0, -1):
+        if ".".join(parts[:i]) in LAYERS:
+            return LAYERS[".".join(parts[:i])]
+    raise AssertionError(f"{module} has no layer: add its package to LAYERS in tests/test_structure.py")
+
+
+def _dependencies(path: Path, mods) -> set[str]:
+    """Modules ``path`` imports (lazily too); a name of the root package counts as the module it resolves to."""
+    root = _lazy(ast.parse((PKG / "__init__.py").read_text()))
+    deps = set()
+    for _, target in _import_targets(path, mods):
+        parent, _, name = target.rpartition(".")
+        if parent == "jgrounding" and name in root:
+            deps.add(root[name][0])
+        else:
+            deps.add(target if target in mods else parent)
+    tree = ast.parse(path.read_text())
+    aliases = {
+        a.asname or a.name
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Import)
+        for a in n.names
+        if a.name == "jgrounding"
+    }
+    for n in ast.walk(tree):  # jg.sample with jg bound to the root package
+        if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id in aliases:
+            if n.attr in root:
+                deps.add(root[n.attr][0])
+    return {d for d in deps if d in mods}
+
+
+def _upward() -> dict[tuple[str, str], int]:
+    mods = _all_modules()
+    found = {}
+    for name, path in mods.items():
+        if name == "jgrounding":
+            continue  # the facade's lazy names point up on purpose; its eager imports are checked below
+        for dep in _dependencies(path, mods):
+            if _layer(dep) > _layer(name):
+                found[(name, dep)] = _layer(dep)
+    return found
+
+
+def test_layers_import_downward_only():
+    found = _upward()
+    new = sorted(set(found) - set(KNOWN_UPWARD))
+    assert not new, (
+        "imports that run upward ("
+        + " -> ".join(LAYER_NAMES)
+        + "):\n"
+        + "\n".join(f"{a} ({LAYER_NAMES[_layer(a)]}) imports {b} ({LAYER_NAMES[_layer(b)]})" for a, b in new)
+    )
+    gone = sorted(set(KNOWN_UPWARD) - set(found))
+    assert not gone, f"fixed upward imports: remove them from KNOWN_UPWARD in tests/test_structure.py: {gone}"
+
+
+def test_the_root_package_imports_only_base_modules_eagerly():
+    mods = _all_modules()
+    tree = ast.parse((PKG / "__init__.py").read_text())
+    eager = {
+        f"{n.module}.{a.name}" if f"{n.module}.{a.name}" in mods else n.module
+        for n in tree.body
+        if isinstance(n, ast.ImportFrom) and n.module and n.module.startswith("jgrounding")
+        for a in n.names
+    }
+    assert eager and all(_layer(m) == 0 for m in eager), eager
+
+
+def test_the_layer_check_sees_lazy_and_facade_imports(tmp_path):
+    mods = _all_modules()
+    src = tmp_path / "m.py"
+    src.write_text(
+        "import jgrounding as jg\n"
+        "def f():\n"
+        "    from jgrounding.evaluation import metrics\n"
+        "    return jg.sample\n"
+        "from jgrounding import ground\n"
+    )
+    assert _dependencies(src, mods) == {
+        "jgrounding",
+        "jgrounding.evaluation.metrics",
+        "jgrounding.generators.sampling",
+        "jgrounding.semantics",
+    }
+    src.write_text("from jgrounding import export\nimport jgrounding.trunk_model\n")
+    assert [t for _, t in _import_targets(src, mods) if not _resolves(t, mods)] == [
+        "jgrounding.export",
+        "jgrounding.trunk_model",
+    ]
+
+
+def test_jg_sim_is_the_trunk_simulation_and_jg_trunk_its_alias():
+    import jgrounding as jg
+    from jgrounding import sim
+
+    assert jg.sim is sim and jg.trunk is sim  # one package, one documented name (jg.sim), one older alias

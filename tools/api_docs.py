@@ -120,7 +120,7 @@ def render() -> str:
         "Shapes: actuation `u` is `(T, N_u) = (150, 4)` in [0, 1] (tendon 0 faces the user, 1 the robot's left, "
         "2 away, 3 right; 0 = slack, 1 = largest safe pull); Catmull–Rom controls `c` are `(N_u, P) = (4, 4)`; "
         "a leading batch axis is allowed where a signature says `...`. Heavy parts are imported on first use "
-        "(`jg.ground`, `jg.sample`, `jg.load_library`, `jg.trunk`).",
+        "(`jg.ground`, `jg.sample`, `jg.load_library`, `jg.sim`).",
         "",
         "## Vocabulary",
         "",
@@ -158,12 +158,14 @@ def render() -> str:
         function("jg.splines.basis", splines.basis),
         function("jg.splines.fit", splines.fit),
         function("jg.splines.reconstruct", splines.reconstruct),
-        "## Trunk simulation: `jg.trunk`",
+        "## Trunk simulation: `jg.sim`",
         "",
-        function("jg.trunk.rollout", sim.rollout),
+        "`jgrounding.sim` as imported by `import jgrounding as jg` (`jg.trunk` is the same module, an older alias).",
+        "",
+        function("jg.sim.rollout", sim.rollout),
         record("Rollout", sim.Rollout),
-        function("jg.trunk.features", sim.features),
-        function("jg.trunk.feasible", sim.feasible),
+        function("jg.sim.features", sim.features),
+        function("jg.sim.feasible", sim.feasible),
         "## Safety: `jg.safety`",
         "",
         markdown(inspect.getdoc(safety)),

@@ -1,7 +1,7 @@
 """The one latency measurement (SPEC §6, Time): what users call, warm, median over calls.
 
 - :func:`latency_ms` is Table II's Time and what the sweeps and ``bench sample`` report: a
-  tuple-conditioned method is timed through the public path, :meth:`jgrounding.sampling.Model.sample`
+  tuple-conditioned method is timed through the public path, :meth:`jgrounding.generators.sampling.Model.sample`
   (the function ``jg.sample`` runs after its cached checkpoint lookup), one trajectory per call, keys
   made before the clock. A raw-text-conditioned method (``jg.sample`` takes tuples, not text) is timed
   through the compiled core and :func:`measures` says so.

@@ -1,7 +1,7 @@
 """The one generator interface (issue #12): every Table II generator is ``init``, ``loss`` and ``sample``.
 
 Like openpi's ``BaseModel`` (``compute_loss`` / ``sample_actions``): the method registry
-(:mod:`jgrounding.methods`) pairs a generator with a condition and an actuation representation, and
+(:mod:`jgrounding.generators.methods`) pairs a generator with a condition and an actuation representation, and
 training, sampling and checkpoints call only these three functions, never a generator's name.
 Implementations: ``methods.Regressor`` (the deterministic CNNs), ``flows.RectifiedFlow`` and
 ``flows.DDPM``. Shared types only; imports nothing from the package but the config.

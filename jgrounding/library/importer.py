@@ -339,7 +339,7 @@ def _read_csv(
 
 
 def _read_command_json(path: Path, num_tendons: int) -> tuple[np.ndarray, list[int], tuple[str, ...]]:
-    """A ``commands.json`` of :func:`jgrounding.export.command_stream_json`; 'line' = 1 + command index."""
+    """A ``commands.json`` of :func:`jgrounding.apps.export.command_stream_json`; 'line' = 1 + command index."""
     try:
         doc = json.loads(path.read_text(encoding="utf-8-sig"))
         header, commands = doc["header"], doc["commands"]

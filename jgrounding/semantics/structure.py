@@ -11,7 +11,7 @@ who is addressed, and whether the text is a log line, background talk or a model
 - **flags** (:data:`FLAGS`): cues of words addressed to someone else, reported or quoted speech, system and log
   lines, background talk (TV, radio, phone), a reasoner that did not understand, questions.
 
-The encoder pools its token states over each span (one forward pass; :func:`jgrounding.semantics.encoder.pool`),
+The encoder pools its token states over each span (one forward pass; :func:`jgrounding.semantics.encoder.pool_ids`),
 so the trained head sees the chosen reaction, the rejected one and the quoted words apart, and the flags tell it
 what kind of text it reads. The head learns what to make of them; nothing here decides an intent.
 """
