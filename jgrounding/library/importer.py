@@ -851,7 +851,7 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
             fix="fix the files listed above",
         )
     x = np.stack([resample(r.time, normalize(r.values, config.limits)) for r in recs])  # (B, T, N_u)
-    controls, raw, u = _reduce(x, config.num_controls, pin_start=False)
+    controls, raw, u = _reduce(x, config.num_controls)
     intent = np.array([e.intent for e in kept], np.int32)
     checks = screening.screen(
         raw, u, intent, simulate=config.simulate, intensity=np.array([e.intensity for e in kept], np.int32)
