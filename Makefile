@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install lint test test-fast ablation sweeps generator ship bench library clean
+.PHONY: install lint test test-fast ablation sweeps generator ship bench bench-peer device-check library clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,7 @@ ablation: install
 sweeps: install
 	$(PY) -m experiments.sweep steps
 	$(PY) -m experiments.sweep controls
+	$(PY) -m experiments.sweep fewstep
 	$(PY) -m tools.readme
 
 # Generator options (EMA, flow-time sampling, guidance, reflow; ~36 min on 2 busy cores), then ship its choice.
@@ -55,8 +56,20 @@ bench: install
 	$(PY) -m experiments.bench all
 	$(PY) -m tools.readme
 
+# PyTorch peers of jg.sample in the same run, from a separate environment (torch is never a dependency of the
+# package; the CPU wheel comes from the local wheel directory pip is configured with).
+PEER_VENV := .venv-peer
+$(PEER_VENV)/.installed:
+	$(PYTHON) -m venv $(PEER_VENV)
+	$(PEER_VENV)/bin/pip install -q torch==2.13.0 numpy
+	touch $@
+
+bench-peer: install $(PEER_VENV)/.installed
+	$(PY) -m experiments.bench_peer --python $(PEER_VENV)/bin/python
+	$(PY) -m tools.readme
+
 library: install
 	$(PY) -m tools.build_library
 
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(PEER_VENV) .pytest_cache .hypothesis

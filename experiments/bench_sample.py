@@ -1,6 +1,13 @@
 """Sampling speed as users meet it: ``python -m experiments.bench sample`` (all numbers from one run).
 
-For the shipped RF checkpoint, every sampler (euler, midpoint, rk4) at S = 50 and few-step S = 4, 2, 1:
+First (issue #25), through ``jg.sample`` itself for every step count S in ``STEP_COUNTS`` (each served by
+its shipped checkpoint, ``assets/checkpoints/shipped.json``): single-trajectory and 1,920-trajectory times
+(64 held-out tuples x 30), the public/core ratio, the achieved GFLOP/s against the machine's peak
+(cores x clock x fp32 FLOP per cycle from /proc/cpuinfo's vector flags), and the fixed per-call cost
+taken apart (dispatch, random numbers, gate, host copy, Python). ``make bench-peer`` adds PyTorch peers
+(experiments/bench_peer.py) as a block of results/bench_sample.md that this script keeps.
+
+Then (``--all-samplers``), for the shipped RF checkpoint, every sampler (euler, midpoint, rk4) at S = 50 and few-step S = 4, 2, 1:
 the public ``jg.sample`` (one trajectory per call, cycling through the held-out tuples; and 1920
 trajectories per call: one tuple x 1920, and 64 held-out tuples x 30) beside the compiled core
 (:func:`jgrounding.evaluation.latency.core_ms`: the same computation with its inputs already on the
@@ -21,8 +28,11 @@ import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import nnx
 
-from jgrounding import load_library
+from jgrounding import load_library, safety
 from jgrounding.evaluation import latency
 from jgrounding.generators import methods, sampling
 from jgrounding.io import write_atomic
@@ -39,6 +49,165 @@ FIRST_CALL = (
     "import time; t = time.perf_counter(); import jax, jgrounding as jg; "
     "jg.sample(jax.random.key(0), 'greeting', 'moderate'); print(time.perf_counter() - t)"
 )
+
+
+STEP_COUNTS = (1, 2, 4, 8, 50)
+PEER_START, PEER_END = "<!-- peer:start -->", "<!-- peer:end -->"  # experiments/bench_peer.py writes between
+
+
+def peak_gflops(cpuinfo: str = "/proc/cpuinfo") -> tuple[float, str]:
+    """(peak fp32 GFLOP/s, how it was computed): cores x clock x FLOP per cycle, where an FMA unit on
+    512-bit vectors (avx512f) counts 64 fp32 FLOP per cycle, on 256-bit (avx2 + fma) 32, else 8 (SSE)."""
+    flags, mhz = set(), []
+    for line in Path(cpuinfo).read_text().splitlines():
+        if line.startswith("flags"):
+            flags |= set(line.split(":", 1)[1].split())
+        elif line.startswith("cpu MHz"):
+            mhz.append(float(line.split(":", 1)[1]))
+    cores = len(os.sched_getaffinity(0))
+    per_cycle, isa = (
+        (64, "avx512f") if "avx512f" in flags else (32, "avx2+fma") if {"avx2", "fma"} <= flags else (8, "sse")
+    )
+    ghz = max(mhz) / 1e3 if mhz else float("nan")
+    peak = cores * ghz * per_cycle
+    return peak, f"{cores} cores x {ghz:.2f} GHz x {per_cycle} fp32 FLOP/cycle ({isa}) = {peak:.0f} GFLOP/s"
+
+
+def flops_per_sample(model: sampling.Model, steps: int) -> float:
+    """Multiply-add FLOPs of the network calls of one sample: per call 2 x (D x W + hidden W x W + W x D)
+    (the condition's and time's shares of the first layer are computed once per call, not per step);
+    guidance doubles the rows. The spline reconstruction and the gate (~5 kFLOP) are left out."""
+    net = nnx.merge(model.trained.graphdef, jax.tree.map(lambda x: x[0], model.trained.params))
+    dim = net.dim
+    shapes = [getattr(net, f"l{i + 1}").kernel.value.shape for i in range(net.depth)]
+    per_call = 2.0 * (dim * shapes[0][1] + sum(a * b for a, b in shapes[1:]))
+    return per_call * steps * (2 if model.guidance else 1)
+
+
+def median_s(call, reps: int) -> float:
+    call()
+    times = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], dict]:
+    """Per S: jg.sample itself (single, 64 x 30) beside the compiled core of the checkpoint it routes to."""
+    ho = lib.heldout
+    key = jax.random.key(0)
+    lines = [
+        "| S | served by | single: jg.sample | core | public / core | 1,920: jg.sample | core | public / core "
+        "| GFLOP per 1,920 | achieved GFLOP/s | % of peak |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    out = {}
+    for s in STEP_COUNTS:
+        path = sampling.shipped_checkpoint(s)
+        model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
+        cond = model.intent_emb[ho.intent]
+        single = latency.jg_sample_ms(ho.intent, ho.intensity, key, steps=s, reps=reps)
+        core = latency.core_ms(model.trained, cond, ho.intensity, key, steps=s, reps=reps, guidance=model.guidance)
+        keys = iter(jax.random.split(key, batch_reps + 1))
+        many = 1e3 * median_s(
+            lambda: sampling.sample(next(keys), list(ho.intent), list(ho.intensity), BATCH // len(ho), steps=s),
+            batch_reps,
+        )
+        core_b = latency.core_ms(
+            model.trained, cond, ho.intensity, key, steps=s, batch=BATCH, reps=batch_reps, guidance=model.guidance
+        )
+        gflop = flops_per_sample(model, s) * BATCH / 1e9
+        rate = gflop / (many / 1e3)
+        name = Path(model.name).name
+        w = f", w = {model.guidance:g}" if model.guidance else ""
+        lines.append(
+            f"| {s} | {name}{w} | {single:.3f} ms | {core:.3f} ms | {single / core:.2f}x | {many:.1f} ms | "
+            f"{core_b:.1f} ms | {many / core_b:.2f}x | {gflop:.2f} | {rate:.1f} | {100 * rate / peak:.1f} % |"
+        )
+        out[s] = {"single_ms": single, "core_ms": core, "batch_ms": many, "core_batch_ms": core_b, "gflop": gflop}
+        print("  " + lines[-1], flush=True)
+    return lines, out
+
+
+def fixed_cost(lib, steps: int, reps: int) -> list[str]:
+    """The fixed cost of one single-trajectory call at ``steps``, taken apart (medians of ``reps``)."""
+    ho = lib.heldout
+    path = sampling.shipped_checkpoint(steps)
+    model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
+    m, z = int(ho.intent[0]), int(ho.intensity[0])
+    key = jax.random.key(0)
+    program = model.program(model.generator.samplers[0], steps, 1, continuity=True)
+    args = (
+        jax.device_put(np.zeros(model.trained.num_tendons, np.float32)),
+        *jax.device_put((np.array([m], np.int32), np.array([z], np.int32))),
+        jax.device_put(np.int32(0)),
+        key,
+    )
+    tr = model.trained
+    params = jax.tree.map(lambda x: x[0], tr.params)
+    dim = tr.num_tendons * tr.num_controls
+    emb = jax.device_put(model.intent_emb)
+
+    def ungated(current, intent, intensity, first, k):
+        del current
+        kk = jax.random.fold_in(k, first)
+        return methods.actuation(
+            tr.method,
+            tr.graphdef,
+            params,
+            emb[intent],
+            intensity,
+            kk,
+            steps=steps,
+            num_controls=tr.num_controls,
+            num_tendons=tr.num_tendons,
+            guidance=model.guidance,
+        )
+
+    raw = jax.jit(ungated)
+    gated = jax.jit(lambda current, *a: safety.make_safe(ungated(current, *a), safety.MAX_SLEW, current))
+    trivial = jax.jit(lambda current, intent, intensity, first, k: current + first)
+    rng = jax.jit(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, dim)))
+    out = program.compiled(*args)
+    fresh = [jnp.array(out) + 0 for _ in range(reps + 1)]
+    it = iter(fresh)
+    t = {
+        "public": median_s(lambda: model.sample(key, m, z, steps=steps), reps),
+        "compiled": median_s(lambda: jax.block_until_ready(program.compiled(*args)), reps),
+        "ungated": median_s(lambda: jax.block_until_ready(raw(*args)), reps),
+        "gated": median_s(lambda: jax.block_until_ready(gated(*args)), reps),
+        "dispatch": median_s(lambda: jax.block_until_ready(trivial(*args)), reps),
+        "rng": median_s(lambda: jax.block_until_ready(rng(key, args[3])), reps),
+        "copy": median_s(lambda: safety.release(next(it)), reps),
+    }
+    t = {k: 1e3 * v for k, v in t.items()}
+    rows = [
+        ("dispatch: a compiled program of the same arguments that returns one of them", t["dispatch"]),
+        ("random numbers: fold_in + normal (1, D), less dispatch", max(t["rng"] - t["dispatch"], 0.0)),
+        ("network + spline, ungated, less dispatch", max(t["ungated"] - t["dispatch"], 0.0)),
+        ("gate (bounds, blend from current, slew limit): the same program gated - ungated", t["gated"] - t["ungated"]),
+        ("host copy and release check (device -> numpy, finite, bounds)", t["copy"]),
+        ("Python: validation, key, cached inputs (public - compiled - copy)", t["public"] - t["compiled"] - t["copy"]),
+    ]
+    lines = [
+        f"Fixed cost of one single-trajectory `jg.sample` at S = {steps} ({Path(model.name).name}): public "
+        f"{t['public']:.3f} ms, the compiled program with its inputs on the device {t['compiled']:.3f} ms "
+        f"(medians of {reps}; each part timed on its own, so the parts need not add up exactly).",
+        "",
+        "| part | ms |",
+        "|---|---|",
+    ] + [f"| {what} | {ms:.3f} |" for what, ms in rows]
+    return lines
+
+
+def _peer_block(path: Path) -> str:
+    """The PyTorch peer block a ``make bench-peer`` run left in ``path`` (kept across re-runs)."""
+    text = path.read_text() if path.exists() else ""
+    if PEER_START in text and PEER_END in text:
+        return text[text.index(PEER_START) : text.index(PEER_END) + len(PEER_END)]
+    return f"{PEER_START}\nPyTorch peers: not measured in this file yet (`make bench-peer`).\n{PEER_END}"
 
 
 def _goal(kind: str, steps: int) -> str:
@@ -117,6 +286,7 @@ def main(argv=None) -> int:
     p.add_argument("--batch-reps", type=int, default=5, help="calls per batch median")
     p.add_argument("--train-steps", type=int, default=10_000)
     p.add_argument("--skip-train", action="store_true")
+    p.add_argument("--all-samplers", action="store_true", help="also every RF sampler and DDPM (issue #14 table)")
     args = p.parse_args(argv)
     lib = load_library()
     load = os.getloadavg()[0]
@@ -126,40 +296,43 @@ def main(argv=None) -> int:
         fill = first_call(cache)
         warm = first_call(cache)
     print(f"first jg.sample in a fresh process: cold {cold:.2f} s, warm persistent cache {warm:.2f} s", flush=True)
-    rf = sampling.model()
-    rows = _rows(rf, "RF", RF_CONFIGS, lib, args.reps, args.batch_reps)
-    if DDPM_CHECKPOINT.exists():
-        ddpm_note = f"DDPM from its ablation checkpoint ({DDPM_CHECKPOINT.relative_to(ROOT)}, seed 0)"
-        rows += _rows(sampling.model(DDPM_CHECKPOINT), "DDPM", DDPM_CONFIGS, lib, args.reps, args.batch_reps)
-    else:
-        ddpm_note = (
-            f"DDPM not measured: no checkpoint at {DDPM_CHECKPOINT.relative_to(ROOT)} (`make ablation` writes it)"
-        )
+    peak, peak_text = peak_gflops()
+    print(f"peak: {peak_text}", flush=True)
+    steps_lines, _ = step_rows(lib, args.reps, args.batch_reps, peak)
     lines = [
-        f"Sampling benchmark: the public `jg.sample` beside the compiled core, one run (RF: the shipped "
-        f"checkpoint; {ddpm_note}). Load average {load:.2f} at the start on {os.cpu_count()} cores; "
-        f"jax {jax.__version__} on {jax.default_backend()}. Medians of {args.reps} single calls (cycling "
-        f"through the {len(lib.heldout)} held-out tuples) and of {args.batch_reps} batch calls.",
+        f"Sampling benchmark, one run: `jg.sample` itself for each step count S (routed to the checkpoint "
+        f"`assets/checkpoints/shipped.json` names for S) beside the compiled core of that checkpoint (the same "
+        f"computation with its inputs on the device and no host work). Load average {load:.2f} at the start on "
+        f"{os.cpu_count()} cores; jax {jax.__version__} on {jax.default_backend()}. Medians of {args.reps} "
+        f"single calls (cycling through the {len(lib.heldout)} held-out tuples) and of {args.batch_reps} "
+        f"calls of 1,920 trajectories ({len(lib.heldout)} held-out tuples x {BATCH // len(lib.heldout)}).",
         "",
-        "| what | public jg.sample | compiled core | public / core | goal (public) |",
-        "|---|---|---|---|---|",
+        f"Peak: {peak_text}. Achieved: the network's multiply-add FLOPs of a 1,920 call "
+        "(`flops_per_sample`) over the public time.",
+        "",
+        *steps_lines,
+        "",
+        *fixed_cost(lib, 1, args.reps),
+        "",
+        *fixed_cost(lib, 50, args.reps),
     ]
+    if args.all_samplers:
+        rf = sampling.model()
+        rows = _rows(rf, "RF", RF_CONFIGS, lib, args.reps, args.batch_reps)
+        if DDPM_CHECKPOINT.exists():
+            rows += _rows(sampling.model(DDPM_CHECKPOINT), "DDPM", DDPM_CONFIGS, lib, args.reps, args.batch_reps)
+        lines += [
+            "",
+            "Every sampler of the shipped RF (and DDPM from its ablation checkpoint when present), through the "
+            "public path of the checkpoint (no routing):",
+            "",
+            "| what | public | compiled core | public / core | goal (issue #14) |",
+            "|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {what} | {pub:.3f} ms | {core:.3f} ms | {pub / core:.2f}x | {goal} |" for what, pub, core, goal in rows
+        ]
     lines += [
-        f"| {what} | {pub:.3f} ms | {core:.3f} ms | {pub / core:.2f}x | {goal} |" for what, pub, core, goal in rows
-    ]
-    single50 = next(pub for what, pub, _, _ in rows if what == "RF euler S=50: single trajectory")
-    ho = lib.heldout
-    itself = {
-        s: latency.jg_sample_ms(ho.intent, ho.intensity, jax.random.key(1), steps=s, reps=args.reps) for s in (50, 1)
-    }
-    lines += [
-        "",
-        f"`jg.sample(key, intent, intensity, steps=S)` itself, with its routing to the shipped model for S "
-        f"(`assets/checkpoints/shipped.json`) and checkpoint-cache lookup: S = 50 {itself[50]:.3f} ms "
-        f"({itself[50] / single50:.2f}x the public-path row above), S = 1 {itself[1]:.3f} ms (the 2-rectified model).",
-        "",
-        f"RF euler S=50 single trajectory: public {single50:.3f} ms vs the paper's "
-        f"{PAPER_MS['tuple_spline_rf']} ms ({PAPER_MS['tuple_spline_rf'] / single50:.1f}x faster here).",
         "",
         "| first jg.sample in a fresh process (import jax + jgrounding, load, compile or cache hit, sample) "
         "| seconds | goal |",
@@ -170,9 +343,10 @@ def main(argv=None) -> int:
     ]
     if not args.skip_train:
         lines += ["", "| training | measured | rate |", "|---|---|---|"] + train_rows(lib, args.train_steps)
-    text = "\n".join(lines)
+    out = ROOT / "results" / "bench_sample.md"
+    text = "\n".join(lines + ["", _peer_block(out)])
     print(text)
-    write_atomic(ROOT / "results" / "bench_sample.md", text + "\n")
+    write_atomic(out, text + "\n")
     return 0
 
 

@@ -4,7 +4,9 @@
    with the options the training sweep chose (condition dropout for guidance, EMA), on every library pair
    (train and held out: the user's model; Table II keeps the paper's 192/64 protocol; the evaluation set
    is never trained on), for ``--steps``.
-2. Trains its 2-rectified flow into assets/checkpoints/tuple_spline_rf_reflow (the few-step candidate).
+2. Trains its 2-rectified flow into assets/checkpoints/tuple_spline_rf_reflow, and MeanFlow and the shortcut
+   model (issue #25; same options and data) into assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
+   few-step candidates.
 3. For each step count S in ``--step-counts``, scores every (checkpoint, guidance w) candidate through
    ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples) on the evaluation
    set with :mod:`jgrounding.evaluation.distribution`, and picks the one with the best score (the mean of
@@ -12,7 +14,8 @@
    0.5-1.5). The chosen guidance is recorded in each checkpoint; assets/checkpoints/shipped.json says which
    checkpoint serves which S, with the scores it was chosen on.
 
-``--no-train`` re-runs only the choice on the checkpoints already there. Prints every command it runs.
+``--no-train`` re-runs only the choice on the checkpoints already there; ``--only NAME,...`` trains only those
+checkpoints (e.g. the few-step ones) and then chooses among all. Prints every command it runs.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from jgrounding.io import write_atomic
 
 CKPT = Path("assets/checkpoints")
 DEFAULT, REFLOW = "tuple_spline_rf", "tuple_spline_rf_reflow"
+MEANFLOW, SHORTCUT = "tuple_spline_meanflow", "tuple_spline_shortcut"  # checkpoint = method name
+CANDIDATES = (DEFAULT, REFLOW, MEANFLOW, SHORTCUT)
 STEPS = 120_000
 OPTIONS = ["--ema-decay", "0.9995", "--condition-dropout", "0.1", "--data", "all"]
 GUIDANCE = (0.0, 0.5, 1.0)
@@ -35,12 +40,19 @@ STEP_COUNTS = (1, 2, 4, 8, 50)
 SCORE = ("prec_r", "mode_cov", "intent_ret", "intensity_ret")
 
 
-def commands(steps: int) -> list[list[str]]:
-    common = ["--method", DEFAULT, "--seeds", "0", "--steps", str(steps), *OPTIONS]
-    return [
-        [*common, "--out", str(CKPT / DEFAULT)],
-        [*common, "--out", str(CKPT / REFLOW), "--reflow-from", str(CKPT / DEFAULT), "--reflow-pairs", "64"],
-    ]
+def commands(steps: int, few_step_steps: int | None = None) -> dict[str, list[str]]:
+    """``experiments.train`` argv of each shipped checkpoint, by checkpoint name (training order)."""
+    common = ["--seeds", "0", "--steps", str(steps), *OPTIONS]
+    few = ["--seeds", "0", "--steps", str(few_step_steps or steps), *OPTIONS]
+    return {
+        DEFAULT: ["--method", DEFAULT, *common, "--out", str(CKPT / DEFAULT)],
+        REFLOW: [
+            *["--method", DEFAULT, *common, "--out", str(CKPT / REFLOW)],
+            *["--reflow-from", str(CKPT / DEFAULT), "--reflow-pairs", "64"],
+        ],
+        MEANFLOW: ["--method", MEANFLOW, *few, "--out", str(CKPT / MEANFLOW)],
+        SHORTCUT: ["--method", SHORTCUT, *few, "--out", str(CKPT / SHORTCUT)],
+    }
 
 
 def _set_guidance(path: Path, w: float) -> None:
@@ -71,7 +83,7 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE) -> dict:
     best_w = {}
     for s in step_counts:
         cands = []
-        for name in (DEFAULT, REFLOW) if (CKPT / REFLOW).exists() else (DEFAULT,):
+        for name in (n for n in CANDIDATES if (CKPT / n / "meta.json").exists()):
             for w in guidance:
                 m = evaluate(CKPT / name, w, s)
                 ok = 0.5 <= m["mm_ratio"] <= 1.5
@@ -90,15 +102,11 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE) -> dict:
     # one guidance per checkpoint (it is recorded there): the one chosen at the largest S it serves
     for name, per_s in best_w.items():
         _set_guidance(CKPT / name, per_s[max(per_s)])
-    reflow_serves = sorted(s for s, v in manifest["scores"].items() if v["checkpoint"] == REFLOW)
-    top = 0
-    for s in sorted(int(x) for x in manifest["scores"]):  # the reflowed model serves S up to where it stops winning
-        if manifest["scores"][str(s)]["checkpoint"] != REFLOW:
-            break
-        top = s
-    if top:
-        manifest["few_step"].append({"max_steps": top, "checkpoint": REFLOW})
-    del reflow_serves
+    # Each S the default does not win is served by its winner: S' routes to the smallest listed S >= S'
+    # (jgrounding.generators.sampling.shipped_checkpoint), beyond the largest to the default.
+    for s in sorted(int(x) for x in manifest["scores"]):
+        if manifest["scores"][str(s)]["checkpoint"] != DEFAULT:
+            manifest["few_step"].append({"max_steps": s, "checkpoint": manifest["scores"][str(s)]["checkpoint"]})
     manifest["candidates"] = [
         {"steps": s, "checkpoint": n, "guidance": w, "score": round(sc, 4), **{k: round(v, 4) for k, v in m.items()}}
         for s, n, w, m, sc in table
@@ -109,10 +117,17 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE) -> dict:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--steps", type=int, default=STEPS, help="training steps of the default model and its reflow")
+    p.add_argument("--few-step-steps", type=int, help="training steps of MeanFlow and the shortcut (default --steps)")
     p.add_argument("--no-train", action="store_true", help="only choose among the checkpoints already there")
+    p.add_argument("--only", help=f"comma-separated checkpoints to train, of {','.join(CANDIDATES)} (default all)")
     p.add_argument("--dry-run", action="store_true", help="print the training commands only")
     args = p.parse_args(argv)
-    for argv_ in commands(args.steps):
+    only = CANDIDATES if args.only is None else tuple(args.only.split(","))
+    if set(only) - set(CANDIDATES):
+        p.error(f"--only: unknown checkpoint(s) {sorted(set(only) - set(CANDIDATES))}; valid: {', '.join(CANDIDATES)}")
+    for name, argv_ in commands(args.steps, args.few_step_steps).items():
+        if name not in only:
+            continue
         print("python -m experiments.train " + " ".join(argv_), flush=True)
         if not (args.dry_run or args.no_train):
             train.main(argv_)
