@@ -659,14 +659,15 @@ def write(res: dict, out: str) -> None:
     write_atomic(outdir / "ablation_rms.npz", b.getvalue())
 
 
-def cross_validate(cfg: AblationConfig, folds: int) -> int:
-    """Run the ablation once per fold (realization k of every tuple held out) and pool the 4 x 64 targets."""
+def cross_validate(cfg: AblationConfig, folds: int, only: int | None = None) -> int:
+    """Run the ablation once per fold (realization k of every tuple held out) and pool the 4 x 64 targets;
+    ``only``: that one fold (a smoke test of the whole path; the table then pools one fold)."""
     from jgrounding.io import write_atomic
 
     t0 = time.perf_counter()
     base = load_library(cfg.library)
     per_fold = []
-    for k in range(folds):
+    for k in range(folds) if only is None else (only,):
         fcfg = dataclasses.replace(cfg, runs=str(Path(cfg.runs) / f"fold{k}"))
         res = run(fcfg, lib=library.fold(base, k))
         per_fold.append(res)
@@ -674,7 +675,8 @@ def cross_validate(cfg: AblationConfig, folds: int) -> int:
     tau = float(cfg.tau)
     lines = [
         f"{folds}-fold cross-validation (each realization held out once: {folds * 64} targets), "
-        f"{len(cfg.seeds)} seeds, {cfg.steps} steps, tau = {tau}.",
+        + ("" if only is None else f"fold {only} only ({len(per_fold) * 64} targets), ")
+        + f"{len(cfg.seeds)} seeds, {cfg.steps} steps, tau = {tau}.",
         "",
         "| Method | Succ. (mean ± std over seeds, pooled over folds) | per fold |",
         "|---|---|---|",
@@ -703,7 +705,9 @@ def cross_validate(cfg: AblationConfig, folds: int) -> int:
     write_atomic(
         Path(cfg.out) / "ablation_folds.json",
         json.dumps(
-            {"config": dataclasses.asdict(cfg), "folds": folds, "rows": pooled, "run_s": run_s}, indent=1, default=float
+            {"config": dataclasses.asdict(cfg), "folds": folds, "only_fold": only, "rows": pooled, "run_s": run_s},
+            indent=1,
+            default=float,
         ),
     )
     print(text)
@@ -735,6 +739,7 @@ def main(argv=None) -> int:
         help="4-fold cross-validation: each realization held out once "
         "(256 targets); writes <out>/ablation_folds.{md,json}",
     )
+    p.add_argument("--only-fold", type=int, choices=range(4), help="with --folds: run this fold only (smoke test)")
     args = p.parse_args(argv)
     cfg = AblationConfig(**QUICK) if args.quick else AblationConfig()
     if args.seeds:
@@ -759,8 +764,10 @@ def main(argv=None) -> int:
         out = args.out or str(Path("results") / Path(args.library).stem)
         cfg = dataclasses.replace(cfg, library=args.library, out=out, runs=str(Path(out) / "runs"))
     t0 = time.perf_counter()
+    if args.only_fold is not None and not args.folds:
+        p.error("--only-fold needs --folds 4")
     if args.folds:
-        return cross_validate(cfg, args.folds)
+        return cross_validate(cfg, args.folds, only=args.only_fold)
     res = run(cfg)
     write(res, cfg.out)
     from experiments import ablation_figures
