@@ -232,9 +232,9 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
     @jax.jit
     def lower(params, ids, mask):
         x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
-        x = encoder._layer_norm(x, params["ln"])
+        x = encoder.layer_norm(x, params["ln"])
         bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
-        return jax.lax.scan(lambda h, p: (encoder._block(h, bias, p), None), x, params["layers"])[0]
+        return jax.lax.scan(lambda h, p: (encoder.block(h, bias, p), None), x, params["layers"])[0]
 
     enc = encoder.tokenizer().encode_batch(texts)
     states, pools = [None] * len(texts), [None] * len(texts)
@@ -242,7 +242,7 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
     for start in range(0, len(texts), 64):
         idx = order[start : start + 64]
         length = encoder.bucket_length(max(len(enc[i].ids) for i in idx))
-        ids, mask = encoder._pad_rows([enc[i] for i in idx], length, 64)
+        ids, mask = encoder.pad_rows([enc[i] for i in idx], length, 64)
         h = np.asarray(lower(low, ids, mask))
         for r, i in enumerate(idx):
             n = len(enc[i].ids)
@@ -262,7 +262,7 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
 
     def features(top, h, m, pw, extra):
         bias = (1.0 - m[:, None, None, :].astype(jnp.float32)) * -1e9
-        x = jax.lax.scan(lambda hh, p: (encoder._block(hh, bias, p), None), h, top)[0]
+        x = jax.lax.scan(lambda hh, p: (encoder.block(hh, bias, p), None), h, top)[0]
         pooled = jnp.einsum("bpl,bld->bpd", pw, x) / jnp.maximum(pw.sum(-1, keepdims=True), 1e-9)
         pooled = pooled / jnp.sqrt(jnp.sum(pooled**2, -1, keepdims=True) + 1e-12)  # smooth at an empty pool
         return jnp.concatenate([pooled.reshape(pooled.shape[0], -1), extra], 1)

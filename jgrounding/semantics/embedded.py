@@ -393,7 +393,7 @@ def compute_prototypes() -> dict:
 
 
 @functools.lru_cache(maxsize=1)
-def _prototypes():
+def prototypes():
     """Embeddings of spec C, loaded once from ``assets/cue_prototypes.npz`` (computed when the asset is missing or
     was made from other cue texts): intent prototypes ``(K, 384)``, their owner ``(K,)``, intensities ``(4, 384)``."""
     if PROTOTYPES_ASSET.exists():
@@ -460,7 +460,7 @@ def _english_fraction(text: str) -> float:
 def intent_scores(r: np.ndarray, text: str) -> np.ndarray:
     """Similarity of the response to each intent's part of spec C ``(16,)``: a soft maximum of the cosine
     to its prototypes plus ``LEXICAL_WEIGHT`` when the text names the intent's action."""
-    e, owner, _ = _prototypes()
+    e, owner, _ = prototypes()
     sims = e @ r
     scores = np.empty(len(INTENTS))
     for m in range(len(INTENTS)):
@@ -537,7 +537,7 @@ def pooled_embeddings(texts, structs, batch_size: int = 64, params=None) -> np.n
         chunk = [enc[i] for i in idx]
         rows = next(b for b in (1, 8, batch_size) if b >= len(chunk))
         length = encoder.bucket_length(max(len(e.ids) for e in chunk))
-        ids, mask = encoder._pad_rows(chunk, length, rows)
+        ids, mask = encoder.pad_rows(chunk, length, rows)
         pools = np.zeros((rows, NUM_POOLS, length), np.float32)
         pools[:, 0, 0] = 1.0  # padding rows
         for row, i in enumerate(idx):
@@ -656,7 +656,7 @@ def ground_embedded_many(texts, head=None) -> list[Grounding]:
 def ground_cues(text: str) -> Grounding:
     """Eq. (3) literally, with cue-list prototypes (the first embedded reducer, kept as a baseline and as
     features of the trained head): argmin over (m, z) of L_sem(r, d_{m,z}); see the module docstring."""
-    _, _, inten = _prototypes()
+    _, _, inten = prototypes()
     r = embed([text])[0]
     intent_sim = intent_scores(r, text)
     cue = degree_estimate(text)

@@ -123,7 +123,7 @@ def tokenizer():
     return tok
 
 
-def _layer_norm(x, p):
+def layer_norm(x, p):
     mu = x.mean(-1, keepdims=True)
     var = ((x - mu) ** 2).mean(-1, keepdims=True)
     return (x - mu) / jnp.sqrt(var + LN_EPS) * p["g"] + p["b"]
@@ -133,7 +133,7 @@ def _dense(x, p):
     return x @ p["w"] + p["b"]
 
 
-def _block(x, mask_bias, p):
+def block(x, mask_bias, p):
     b, t, _ = x.shape
     d = HIDDEN // NUM_HEADS
 
@@ -143,18 +143,18 @@ def _block(x, mask_bias, p):
     q, k, v = heads(_dense(x, p["q"])), heads(_dense(x, p["k"])), heads(_dense(x, p["v"]))
     att = jax.nn.softmax(q @ k.transpose(0, 1, 3, 2) / math.sqrt(d) + mask_bias, axis=-1)
     ctx = (att @ v).transpose(0, 2, 1, 3).reshape(b, t, HIDDEN)
-    x = _layer_norm(x + _dense(ctx, p["o"]), p["ln1"])
+    x = layer_norm(x + _dense(ctx, p["o"]), p["ln1"])
     h = jax.nn.gelu(_dense(x, p["ff1"]), approximate=False)
-    return _layer_norm(x + _dense(h, p["ff2"]), p["ln2"])
+    return layer_norm(x + _dense(h, p["ff2"]), p["ln2"])
 
 
 @jax.jit
 def encode_ids(params, ids, mask):
     """Token ids ``(B, L)`` int32 and attention mask ``(B, L)`` -> unit sentence embeddings ``(B, 384)``."""
     x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
-    x = _layer_norm(x, params["ln"])
+    x = layer_norm(x, params["ln"])
     mask_bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
-    x, _ = jax.lax.scan(lambda h, p: (_block(h, mask_bias, p), None), x, params["layers"])
+    x, _ = jax.lax.scan(lambda h, p: (block(h, mask_bias, p), None), x, params["layers"])
     m = mask[..., None].astype(jnp.float32)
     pooled = (x * m).sum(1) / jnp.maximum(m.sum(1), 1e-9)
     return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)
@@ -168,9 +168,9 @@ def pool_ids(params, ids, mask, pools):
     empty pool). A pool equal to ``mask`` gives :func:`encode_ids`'s sentence embedding.
     """
     x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
-    x = _layer_norm(x, params["ln"])
+    x = layer_norm(x, params["ln"])
     mask_bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
-    x, _ = jax.lax.scan(lambda h, p: (_block(h, mask_bias, p), None), x, params["layers"])
+    x, _ = jax.lax.scan(lambda h, p: (block(h, mask_bias, p), None), x, params["layers"])
     w = pools.astype(jnp.float32)
     pooled = jnp.einsum("bpl,bld->bpd", w, x) / jnp.maximum(w.sum(-1, keepdims=True), 1e-9)
     return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)
@@ -194,7 +194,7 @@ def span_pools(enc, spans_per_pool, length: int) -> np.ndarray:
     return out
 
 
-def _pad_rows(enc, length: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
+def pad_rows(enc, length: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
     ids = np.zeros((rows, length), np.int32)
     mask = np.zeros((rows, length), np.int32)
     for i, e in enumerate(enc):
@@ -212,7 +212,7 @@ def bucket_length(num_tokens: int) -> int:
 def tokenize(texts) -> tuple[np.ndarray, np.ndarray]:
     """Texts -> (ids, mask) ``(N, L)`` int32, padded to the smallest bucket L that fits the longest text."""
     enc = tokenizer().encode_batch(list(texts))
-    return _pad_rows(enc, bucket_length(max(len(e.ids) for e in enc)), len(enc))
+    return pad_rows(enc, bucket_length(max(len(e.ids) for e in enc)), len(enc))
 
 
 def embed(texts, batch_size: int = 64) -> np.ndarray:
@@ -239,7 +239,7 @@ def embed(texts, batch_size: int = 64) -> np.ndarray:
         idx = order[start : start + batch_size]
         chunk = [enc[i] for i in idx]
         rows = next(b for b in (1, 8, batch_size) if b >= len(chunk))
-        ids, mask = _pad_rows(chunk, bucket_length(max(len(e.ids) for e in chunk)), rows)
+        ids, mask = pad_rows(chunk, bucket_length(max(len(e.ids) for e in chunk)), rows)
         out[idx] = np.asarray(encode_ids(params, ids, mask))[: len(chunk)]
     return out
 

@@ -54,15 +54,12 @@ class HeadConfig:
 
     @property
     def num_features(self) -> int:
-        if self.inputs == "tuned":
+        if self.inputs in ("structure", "tuned"):
+            # Four poolings of the encoder, the chosen part's intent evidence (16) and degree cues (4), the
+            # rejected part's intent evidence (16) and the structure flags (embedded.structure_features).
             from jgrounding.semantics.structure import NUM_FLAGS
 
             return 4 * EMBED_DIM + 2 * NUM_INTENTS + NUM_DEGREE + NUM_FLAGS
-        if self.inputs == "structure":
-            from jgrounding.semantics.embedded import STRUCTURE_FEATURES
-            from jgrounding.semantics.structure import NUM_FLAGS
-
-            return STRUCTURE_FEATURES + NUM_FLAGS
         return EMBED_DIM + (NUM_INTENTS + NUM_DEGREE if self.use_eq3 else 0)
 
 
@@ -235,14 +232,14 @@ def fit_temperature(logits_fn, intent, grid=np.exp(np.linspace(np.log(0.3), np.l
     return float(grid[int(np.argmin(nll))])
 
 
-def _flat(tree: dict, prefix: str = "") -> dict:
+def flatten(tree: dict, prefix: str = "") -> dict:
     out = {}
     for k, v in tree.items():
-        out |= _flat(v, f"{prefix}{k}/") if isinstance(v, dict) else {f"{prefix}{k}": v}
+        out |= flatten(v, f"{prefix}{k}/") if isinstance(v, dict) else {f"{prefix}{k}": v}
     return out
 
 
-def _unflat(flat: dict) -> dict:
+def unflatten(flat: dict) -> dict:
     out: dict = {}
     for k, v in flat.items():
         *path, leaf = k.split("/")
@@ -279,7 +276,7 @@ def save(path, params: dict, cfg: HeadConfig, meta: dict, top_delta: dict | None
     from jgrounding.io import write_atomic
 
     arrays = {f"param/{k}": np.asarray(v) for k, v in params.items()}
-    arrays |= {f"top/{k}": np.asarray(v) for k, v in _flat(top_delta or {}).items()}
+    arrays |= {f"top/{k}": np.asarray(v) for k, v in flatten(top_delta or {}).items()}
     buf = io.BytesIO()
     np.savez(buf, **arrays, config=json.dumps(dataclasses.asdict(cfg)), meta=json.dumps(meta, sort_keys=True))
     return write_atomic(path, buf.getvalue())
@@ -311,7 +308,7 @@ def load(path: str | None = None) -> Head:
         params = {k.split("/", 1)[1]: jnp.asarray(f[k]) for k in f.files if k.startswith("param/")}
         cfg = HeadConfig(**json.loads(str(f["config"])))
         meta = json.loads(str(f["meta"]))
-        deltas = _unflat({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
+        deltas = unflatten({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
     enc = with_top(deltas, cfg) if cfg.tuned_layers else None
     return Head(params, cfg, float(meta["temperature"]), float(meta["threshold"]), meta, enc)
 

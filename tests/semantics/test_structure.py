@@ -119,7 +119,7 @@ def test_shipped_head_is_structure_aware_with_reasons():
 
 def test_shipped_cue_prototypes_match_a_fresh_computation():
     fresh = embedded.compute_prototypes()
-    e, owner, inten = embedded._prototypes()
+    e, owner, inten = embedded.prototypes()
     np.testing.assert_allclose(e, fresh["prototypes"], atol=1e-5)
     np.testing.assert_array_equal(owner, fresh["owner"])
     np.testing.assert_allclose(inten, fresh["intensities"], atol=1e-5)
@@ -175,5 +175,5 @@ def test_tuned_layers_ship_as_float16_deltas_on_the_frozen_encoder():
     np.testing.assert_array_equal(
         np.asarray(merged["layers"]["q"]["w"][:-2]), np.asarray(base["layers"]["q"]["w"][:-2])
     )
-    flat = sh._flat(deltas)
-    assert "q/w" in flat and sh._unflat(flat).keys() == deltas.keys()
+    flat = sh.flatten(deltas)
+    assert "q/w" in flat and sh.unflatten(flat).keys() == deltas.keys()
