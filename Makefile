@@ -70,6 +70,11 @@ bench-peer: install $(PEER_VENV)/.installed
 	$(PY) -m experiments.bench_peer --python $(PEER_VENV)/bin/python
 	$(PY) -m tools.readme
 
+# The prepared accelerator check: <= 8 min on one GPU, writes results/gpu.md (--tiny: CPU, seconds).
+device-check: install
+	bash scripts/device_check.sh
+	$(PY) -m tools.readme
+
 library: install
 	$(PY) -m tools.build_library
 

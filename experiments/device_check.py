@@ -171,26 +171,27 @@ def main(argv=None) -> int:
     seconds = time.perf_counter() - t_start
     note = (
         "**Tiny run (CI): every step on the CPU at small sizes, native MuJoCo standing in for MJX; these are "
-        "not accelerator figures.**"
+        "not accelerator figures.** No accelerator run has been recorded yet: `bash scripts/device_check.sh` on "
+        "a GPU machine replaces this file with its figures."
         if args.tiny
         else f"Accelerator run on {devices}."
     )
     lines = [
-        "## Accelerator check (`bash scripts/device_check.sh`, experiments/device_check.py)",
+        "### Accelerator check (`bash scripts/device_check.sh`, experiments/device_check.py)",
         "",
         note,
         f'jax {jax.__version__}, backend {backend}, engine "auto" here: {sim.resolve_engine("auto")}; host '
         f"{os.cpu_count()} CPU cores; run time {seconds:.0f} s.",
         "",
-        f"### Rollout throughput: {mjx_engine} vs native MuJoCo on the CPU (150 control steps x 4 substeps)",
+        f"#### Rollout throughput: {mjx_engine} vs native MuJoCo on the CPU (150 control steps x 4 substeps)",
         "",
         *parts["throughput"],
         "",
-        "### Sampler on this device",
+        "#### Sampler on this device",
         "",
         *parts["sampler"],
         "",
-        f"### Ablation physics columns, one seed (shipped RF, S = {sizes['steps'][-1]}, K = {sizes['k']} x "
+        f"#### Ablation physics columns, one seed (shipped RF, S = {sizes['steps'][-1]}, K = {sizes['k']} x "
         f"{sizes['tuples']} "
         "held-out tuples)",
         "",

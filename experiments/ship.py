@@ -11,8 +11,9 @@
    ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples) on the evaluation
    set with :mod:`jgrounding.evaluation.distribution`, and picks the one with the best score (the mean of
    Prec@r, ModeCov, intent and intensity retrieval, among candidates whose multimodality ratio is in
-   0.5-1.5). The chosen guidance is recorded in each checkpoint; assets/checkpoints/shipped.json says which
-   checkpoint serves which S, with the scores it was chosen on.
+   0.5-1.5), one guidance per checkpoint (:func:`assign`). The chosen guidance is recorded in each
+   checkpoint; assets/checkpoints/shipped.json says which checkpoint serves which S, with the scores it was
+   chosen on.
 
 ``--no-train`` re-runs only the choice on the checkpoints already there; ``--only NAME,...`` trains only those
 checkpoints (e.g. the few-step ones) and then chooses among all. Prints every command it runs.
@@ -35,7 +36,7 @@ MEANFLOW, SHORTCUT = "tuple_spline_meanflow", "tuple_spline_shortcut"  # checkpo
 CANDIDATES = (DEFAULT, REFLOW, MEANFLOW, SHORTCUT)
 STEPS = 120_000
 OPTIONS = ["--ema-decay", "0.9995", "--condition-dropout", "0.1", "--data", "all"]
-GUIDANCE = (0.0, 0.5, 1.0)
+GUIDANCE = (0.0, 0.25, 0.5, 1.0)
 STEP_COUNTS = (1, 2, 4, 8, 50)
 SCORE = ("prec_r", "mode_cov", "intent_ret", "intensity_ret")
 
@@ -78,35 +79,55 @@ def evaluate(path: Path, w: float, steps: int, k: int = 30) -> dict:
     return distribution.score(u, ho.intent, ho.intensity, lib.evaluation, with_frechet=False).summary()
 
 
+def assign(table: list[tuple], step_counts=STEP_COUNTS) -> tuple[dict, dict]:
+    """Which (checkpoint, guidance) serves each S, with one guidance per checkpoint (it is recorded there).
+
+    ``table``: ``(S, checkpoint, w, metrics, score)`` rows. The default serves the largest S with its best w
+    (and every S beyond the listed ones). Then, for the smaller S in ascending order (the few-step settings
+    first), the best-scoring row wins among the default at its fixed w and the other checkpoints at any w
+    not yet fixed by a smaller S; the winner's w is then fixed. Returns ``({S: (checkpoint, w, metrics)},
+    {checkpoint: w})``; a checkpoint that serves no S keeps its best w at the smallest S.
+    """
+    rows = {(s, n, w): (m, sc) for s, n, w, m, sc in table}
+    top = max(step_counts)
+    fixed = {DEFAULT: max((r for r in table if r[0] == top and r[1] == DEFAULT), key=lambda r: r[4])[2]}
+    served = {top: (DEFAULT, fixed[DEFAULT], rows[(top, DEFAULT, fixed[DEFAULT])][0])}
+    for s in sorted(step_counts)[:-1]:
+        cands = [r for r in table if r[0] == s and fixed.get(r[1], r[2]) == r[2]]
+        _, name, w, m, _ = max(cands, key=lambda r: r[4])
+        fixed[name] = w
+        served[s] = (name, w, m)
+    for _, name, w, _, _ in sorted(table, key=lambda r: (r[0], -r[4])):
+        fixed.setdefault(name, w)  # never chosen: its best w at the smallest S
+    return served, fixed
+
+
 def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE) -> dict:
-    table, manifest = [], {"default": DEFAULT, "few_step": [], "chosen_by": "python -m experiments.ship", "scores": {}}
-    best_w = {}
+    table = []
     for s in step_counts:
-        cands = []
         for name in (n for n in CANDIDATES if (CKPT / n / "meta.json").exists()):
             for w in guidance:
                 m = evaluate(CKPT / name, w, s)
                 ok = 0.5 <= m["mm_ratio"] <= 1.5
                 score = float(np.mean([m[k] for k in SCORE])) if ok else -1.0
-                cands.append((score, name, w, m))
                 table.append((s, name, w, m, score))
                 print(
-                    f"S={s:3d} {name:24s} w={w:.1f}: "
+                    f"S={s:3d} {name:24s} w={w:.2f}: "
                     + ", ".join(f"{k} {m[k]:.3f}" for k in (*SCORE, "between", "mm_ratio"))
                     + f" -> score {score:.3f}",
                     flush=True,
                 )
-        score, name, w, m = max(cands, key=lambda c: c[0])
+    served, fixed = assign(table, step_counts)
+    for name, w in fixed.items():
+        _set_guidance(CKPT / name, w)
+    manifest = {"default": DEFAULT, "few_step": [], "chosen_by": "python -m experiments.ship", "scores": {}}
+    for s in sorted(served):
+        name, w, m = served[s]
         manifest["scores"][str(s)] = {"checkpoint": name, "guidance": w, **{k: round(v, 4) for k, v in m.items()}}
-        best_w.setdefault(name, {})[s] = w
-    # one guidance per checkpoint (it is recorded there): the one chosen at the largest S it serves
-    for name, per_s in best_w.items():
-        _set_guidance(CKPT / name, per_s[max(per_s)])
-    # Each S the default does not win is served by its winner: S' routes to the smallest listed S >= S'
-    # (jgrounding.generators.sampling.shipped_checkpoint), beyond the largest to the default.
-    for s in sorted(int(x) for x in manifest["scores"]):
-        if manifest["scores"][str(s)]["checkpoint"] != DEFAULT:
-            manifest["few_step"].append({"max_steps": s, "checkpoint": manifest["scores"][str(s)]["checkpoint"]})
+    # S' routes to the smallest listed max_steps >= S' (jgrounding.generators.sampling.shipped_checkpoint),
+    # beyond the largest to the default; so every S below the largest is listed with its winner.
+    if any(served[s][0] != DEFAULT for s in served):
+        manifest["few_step"] = [{"max_steps": s, "checkpoint": served[s][0]} for s in sorted(served)[:-1]]
     manifest["candidates"] = [
         {"steps": s, "checkpoint": n, "guidance": w, "score": round(sc, 4), **{k: round(v, 4) for k, v in m.items()}}
         for s, n, w, m, sc in table

@@ -7,6 +7,8 @@
 - ``controls``: Tuple + Spline + RF trained with P = 3..8 spline controls (fewer seeds): success, diversity.
 - ``training``: generator options each off or on (EMA, flow-time sampling, guidance, few-step reflow vs
   DDPM/DDIM), 5 seeds; chooses the shipped default (experiments/sweep_training.py).
+- ``fewstep``: RF, 2-rectified flow, MeanFlow and shortcut at S = 1, 2, 4, 8, 50 on the distribution
+  metrics, 5 seeds (experiments/sweep_fewstep.py, issue #25).
 Each writes results/sweep_<name>.{md,json} and a PNG.
 """
 
@@ -28,7 +30,7 @@ from jgrounding.generators import methods
 from jgrounding.io import write_atomic
 from jgrounding.training import TrainConfig
 
-SWEEPS = ("tau_rms", "steps", "controls", "training")
+SWEEPS = ("tau_rms", "steps", "controls", "training", "fewstep")
 RESULTS = Path("results")
 
 
@@ -204,17 +206,26 @@ def main(argv=None) -> int:
         type=int,
         help="seeds for `controls` (default 3; trains 6 models per seed) and `training` (default 5)",
     )
-    p.add_argument("--steps", type=int, default=10_000, help="training steps for `controls` and `training`")
+    p.add_argument(
+        "--steps", type=int, help="training steps for `controls`, `training` (default 10,000) and `fewstep` (20,000)"
+    )
     p.add_argument("--reflow-pairs", type=int, default=64, help="`training`: teacher pairs per training example")
     args = p.parse_args(argv)
     if args.seeds is None:
-        args.seeds = 5 if args.name == "training" else 3
-    args.out = RESULTS
-    from experiments import sweep_training
+        args.seeds = 5 if args.name in ("training", "fewstep") else 3
+    from experiments import sweep_fewstep, sweep_training
 
-    res = {"tau_rms": sweep_tau, "steps": sweep_steps, "controls": sweep_controls, "training": sweep_training.run}[
-        args.name
-    ](args)
+    if args.steps is None:
+        args.steps = sweep_fewstep.DEFAULT_STEPS if args.name == "fewstep" else 10_000
+    args.out = RESULTS
+
+    res = {
+        "tau_rms": sweep_tau,
+        "steps": sweep_steps,
+        "controls": sweep_controls,
+        "training": sweep_training.run,
+        "fewstep": sweep_fewstep.run,
+    }[args.name](args)
     write_atomic(RESULTS / f"sweep_{args.name}.md", res["markdown"] + "\n")
     write_atomic(
         RESULTS / f"sweep_{args.name}.json",

@@ -26,6 +26,11 @@ SECTIONS = (
     ("sweep_training.md", "### Generator options: EMA, flow-time sampling, guidance, few-step (sweep training)"),
     ("sweep_training_options.png", ""),
     ("sweep_training_nfe.png", ""),
+    (
+        "sweep_fewstep.md",
+        "### Few steps that keep the distribution: RF, 2-rectified flow, MeanFlow, shortcut (sweep fewstep)",
+    ),
+    ("sweep_fewstep.png", "Steps vs quality, mean ± std over seeds (one line per generator):"),
     ("physics_aware.md", "### Physics-aware fine-tuning settings (experiments/physics_aware.py)"),
     ("ablation_folds.md", "### 4-fold cross-validation (experiments/ablation.py --folds 4)"),
     ("bench_sample.md", "### Speed: sampling and training (experiments/bench.py sample)"),
@@ -34,6 +39,7 @@ SECTIONS = (
     ("semantics_confusion.png", ""),
     ("bench_fuzz.md", "### Sampler fuzzing at scale (experiments/bench.py fuzz)"),
     ("bench_shard.md", "### Device mesh (experiments/bench.py shard)"),
+    ("gpu.md", ""),
 )
 
 DIFFERENCES = """### Where our numbers differ from the paper's, and why
