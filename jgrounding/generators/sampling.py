@@ -2,7 +2,8 @@
 
 One tuple gives ``(150, 4)`` (``num_samples == 1``) or ``(K, 150, 4)``; sequences of N tuples give
 ``(N, K, 150, 4)``. Loads the shipped pretrained Tuple + Spline + RF checkpoint
-(``assets/checkpoints/tuple_spline_rf``) once per process. The parameters of one seed and the intent
+(``assets/checkpoints/tuple_spline_rf``), or the few-step model ``assets/checkpoints/shipped.json`` names for
+the step count (e.g. MeanFlow), once per process. The parameters of one seed and the intent
 embeddings live on the device as constants of the compiled program (no seed axis: a size-1 seed vmap
 turns every matmul into a batched dot that XLA's CPU backend runs ~10x slower); one program is
 compiled per (sampler, steps, batch bucket) and never traced again. Outputs pass the one safety gate
@@ -340,6 +341,21 @@ def shipped_checkpoint(steps: int) -> Path:
     return DEFAULT_CHECKPOINT.parent / name if name else DEFAULT_CHECKPOINT
 
 
+@functools.lru_cache(maxsize=256)
+def _route(manifest: Path, steps: int, sampler: str | None) -> Path | None:
+    """The checkpoint ``jg.sample`` uses for ``steps`` and ``sampler`` (None: the default): the shipped one for
+    ``steps`` (:func:`shipped_checkpoint`), unless its generator has no such sampler (e.g. ``midpoint`` for a
+    MeanFlow or shortcut model), which the default then serves. ``manifest``: :data:`SHIPPED` (a cache key)."""
+    del manifest  # shipped_checkpoint reads it
+    path = shipped_checkpoint(steps)
+    if path == DEFAULT_CHECKPOINT:
+        return None
+    method = checkpoints.read_meta(path).get("method")
+    if sampler is not None and method in methods.REGISTRY and sampler not in methods.spec(method).generator.samplers:
+        return None
+    return path
+
+
 def load(checkpoint: str | Path | None = None, allow_library_mismatch: bool = False):
     """(Trained, intent embeddings ``(16, 384)``) of :func:`model` (cached; same refusals)."""
     loaded = model(checkpoint, allow_library_mismatch)
@@ -371,8 +387,9 @@ def sample(
       num_samples: K samples per tuple, 1..4096.
       sampler: ``euler`` (default) | ``midpoint`` | ``rk4`` for a rectified flow; ``ancestral`` | ``ddim``
         for a DDPM checkpoint. steps: S sampler steps, 1..1000.
-      checkpoint: a checkpoint directory (default: the shipped Tuple + Spline + RF that serves ``steps``
-        best, :func:`shipped_checkpoint`); each checkpoint samples with its recorded guidance weight.
+      checkpoint: a checkpoint directory (default: the shipped model that serves ``steps`` best,
+        :func:`shipped_checkpoint`, e.g. MeanFlow for a few steps, or the default RF when that model has no
+        such ``sampler``); each checkpoint samples with its recorded guidance weight.
       current: the command the robot holds now: ``"rest"`` (default, every tendon slack), a ``(N_u,)``
         command in [0, 1] (e.g. the last step of the previous response), or None. The trajectories blend
         in from it within the slew bound (:mod:`jgrounding.safety`, guarantee 4), so consecutive
@@ -413,8 +430,8 @@ def sample(
             allow_library_mismatch=allow_library_mismatch,
         ).u
     if checkpoint is None and isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
-        checkpoint = shipped_checkpoint(int(steps))
-        checkpoint = None if checkpoint == DEFAULT_CHECKPOINT else checkpoint
+        if sampler is None or isinstance(sampler, str):
+            checkpoint = _route(SHIPPED, int(steps), sampler)
     return model(checkpoint, allow_library_mismatch).sample(
         key,
         intent,

@@ -103,3 +103,11 @@ def test_few_step_methods_are_not_table_ii_rows():
     assert set(FEW_STEP) == set(methods.FEW_STEP) and not set(FEW_STEP) & set(methods.METHODS)
     with pytest.raises(ValueError, match="tuple_spline_meanflow"):
         methods.spec("meanflow")
+
+
+def test_a_sampler_the_few_step_model_lacks_is_served_by_the_default():
+    key = jax.random.key(4)
+    u = jg.sample(key, "greeting", "moderate", steps=2, sampler="midpoint")  # routed: the default RF
+    assert u.shape == (150, 4) and jg.safety.is_safe(u)
+    assert sampling.TRACES[(str(sampling.DEFAULT_CHECKPOINT), "midpoint", 2, 1)] == 1
+    assert jg.sample(key, "greeting", "moderate", steps=2).shape == (150, 4)  # the shipped few-step model
