@@ -3,8 +3,8 @@
 Like openpi's ``BaseModel`` (``compute_loss`` / ``sample_actions``): the method registry
 (:mod:`jgrounding.generators.methods`) pairs a generator with a condition and an actuation representation, and
 training, sampling and checkpoints call only these three functions, never a generator's name.
-Implementations: ``methods.Regressor`` (the deterministic CNNs), ``flows.RectifiedFlow`` and
-``flows.DDPM``. Shared types only; imports nothing from the package but the config.
+Implementations: ``methods.Regressor`` (the deterministic CNNs), ``flows.RectifiedFlow``,
+``flows.DDPM``, and the one-step ``few_step.MeanFlow`` and ``few_step.Shortcut``. Shared types only; imports nothing from the package but the config.
 """
 
 from __future__ import annotations

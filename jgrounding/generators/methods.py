@@ -5,6 +5,10 @@ Name pattern *Semantic Condition + Actuation Representation + Generator*:
 Tuple conditioning is (E_m(m), E_z(z)); raw conditioning is the response text's embedding. Spline
 methods work on the 4 x P controls (normalized to [-1, 1]) and reconstruct u = R(c); dense methods
 predict the 150 x 4 trajectory directly. Every output passes through ``safety.make_safe``.
+
+Beyond Table II, the one-step generators of issue #25 are registered the same way
+(``tuple_spline_meanflow``, ``tuple_spline_shortcut``: :data:`FEW_STEP`, :mod:`jgrounding.generators.few_step`);
+:data:`METHODS` stays the five rows of Table II.
 """
 
 from __future__ import annotations
