@@ -265,8 +265,10 @@ def with_top(deltas: dict, cfg: HeadConfig) -> dict:
 
     params = dict(encoder.load_params())
     k = cfg.tuned_layers
-    params["layers"] = jax.tree.map(
-        lambda b, d: jnp.concatenate([b[:-k], b[-k:] + jnp.asarray(d, jnp.float32)]), params["layers"], deltas
+    params["layers"] = jax.tree.map(  # in numpy: no small compiled ops on a fresh process's first call
+        lambda b, d: jnp.asarray(np.concatenate([np.asarray(b)[:-k], np.asarray(b)[-k:] + np.asarray(d, np.float32)])),
+        params["layers"],
+        deltas,
     )
     return params
 
