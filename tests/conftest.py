@@ -6,3 +6,88 @@ from hypothesis import HealthCheck, settings  # noqa: E402
 
 settings.register_profile("ci", deadline=None, max_examples=40, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("ci")
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def own_model(tmp_path_factory):
+    """``(library npz, checkpoint dir)`` of the docs' example model (tests/own_model.py), built once per session:
+    tests/apps/test_own_model.py and the own_data.md page of tests/test_docs.py share it (read-only)."""
+    from own_model import build
+
+    return build(tmp_path_factory.mktemp("own_model"))
+
+
+# --- `make test-fast` (pytest -m "not slow") -----------------------------------------------------------------
+# Tests marked slow here rather than in their files: each took >= ~2.7 s (call + its share of a module fixture)
+# in `pytest --durations=0` on 2 cores at load average 5-9 (docs/testing.md has the table and how to re-measure).
+# `make test` and CI still run them. An entry names a test (``file::name``, a parametrized test as a whole) or a
+# whole file (its module fixture is the slow part). An entry that matches nothing in a collected file is an
+# error, so a renamed test cannot silently return to the fast set.
+SLOW = {
+    "tests/apps/test_cli_end_to_end.py::test_cli_jsonl_mode_and_direct_tuple": 8.1,
+    "tests/apps/test_cli_end_to_end.py::test_cli_screen_and_current_flags": 5.7,
+    "tests/apps/test_cli_end_to_end.py::test_interactive_loop_keeps_history": 2.8,
+    "tests/apps/test_own_model.py::test_cli_text_with_own_checkpoint": 6.1,
+    "tests/generators/test_few_step.py::test_networks_and_samples_have_the_flow_shapes": 10.1,
+    "tests/generators/test_few_step.py::test_training_lowers_the_loss_on_a_tiny_problem": 9.6,
+    "tests/generators/test_few_step.py::test_one_step_through_jg_sample_passes_the_gate_and_traces_once": 3.3,
+    "tests/generators/test_few_step.py::"
+    "test_the_exact_field_of_a_point_mass_has_zero_loss_and_a_wrong_one_does_not": 4.0,
+    "tests/generators/test_generator_options.py::test_guidance_extrapolates_from_the_null_condition": 3.6,
+    "tests/generators/test_generators.py::test_resumed_training_equals_uninterrupted": 8.1,
+    "tests/generators/test_generators.py::test_cnn_regressor_collapses_to_the_mean": 4.9,
+    "tests/generators/test_generators.py::test_distributional_generators_recover_both_modes": 6.8,
+    "tests/generators/test_sampling.py::test_samples_do_not_depend_on_the_batch_bucket_or_chunking": 2.7,
+    "tests/evaluation/test_distribution.py::test_reference_brackets_hold": 31.7,  # the refs fixture (k=8)
+    "tests/evaluation/test_distribution.py::test_perfect_replay_ranks_above_hedge_and_collapse": 0.1,
+    "tests/evaluation/test_distribution.py::test_prec_at_tau_alone_cannot_tell_them_apart": 0.1,
+    "tests/evaluation/test_latency.py::test_raw_conditioning_is_timed_through_the_core_and_says_so": 3.0,
+    "tests/library/test_library_metrics.py::test_another_seed_gives_another_library": 22.9,
+    "tests/library/test_library_metrics.py::test_regeneration_is_byte_identical": 38.9,
+    "tests/library/test_own_library.py::test_three_tendons_train_and_generate": 23.3,
+    "tests/library/test_own_library.py::test_train_cli_and_sample_three_tendons": 4.6,
+    "tests/library/test_signatures.py": 20.7,  # simulates the whole library once
+    "tests/serving/test_load_faults.py": 26.5,  # live streams of several seconds each
+    "tests/serving/test_page.py": 6.5,  # headless Chromium
+    "tests/sim/test_render_views.py": 5.3,  # OSMesa renders
+    "tests/sim/test_trunk.py::test_contact_pruning_is_exact": 3.0,
+    "tests/test_config.py::test_a_checkpoint_without_sizes_loads_with_table_one_sizes_or_is_refused": 2.7,
+    "tests/test_config.py::test_checkpoint_records_model_sizes_and_restores_them": 5.1,
+    "tests/test_config.py::test_model_sizes_reach_the_network": 4.0,
+    "tests/test_docs.py::test_python_blocks_run[README.md]": 5.3,
+    "tests/test_docs.py::test_python_blocks_run[docs/distributed.md]": 4.5,
+    "tests/test_docs.py::test_python_blocks_run[docs/own_data.md]": 4.9,
+    "tests/test_docs.py::test_python_blocks_run[docs/serving.md]": 6.2,
+    "tests/test_fuzz.py::test_cli_fuzzed_arguments_succeed_or_exit_2_with_usage": 8.4,
+    "tests/test_fuzz.py::test_non_finite_conditions_are_never_emitted": 3.0,
+    "tests/test_fuzz.py::test_sample_with_valid_fuzzed_arguments_is_safe": 8.4,
+    "tests/training/test_distributed.py::test_four_forced_host_devices_form_one_data_mesh": 20.7,  # sharded_run
+    "tests/training/test_distributed.py::test_training_chunk_keeps_the_seed_axis_split": 0.0,
+    "tests/training/test_distributed.py::test_sharded_training_equals_single_device": 0.0,
+    "tests/training/test_distributed.py::test_sharded_generation_equals_single_device": 0.0,
+    "tests/training/test_retrace.py::test_sampler_traces_once_across_calls": 4.0,
+}
+
+
+def _slow_entry(nodeid: str) -> str | None:
+    for entry in (nodeid, nodeid.split("[")[0], nodeid.split("::")[0]):
+        if entry in SLOW:
+            return entry
+    return None
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m "not slow" deselects
+def pytest_collection_modifyitems(config, items):
+    used, files = set(), {item.nodeid.split("::")[0] for item in items}
+    for item in items:
+        entry = _slow_entry(item.nodeid)
+        if entry is not None:
+            used.add(entry)
+            item.add_marker(pytest.mark.slow)
+    stale = sorted(e for e in SLOW if e.split("::")[0] in files and e not in used)
+    partial = config.option.keyword or config.option.deselect or any("::" in str(a) for a in config.args)
+    if stale and not partial:  # a -k, --deselect or file::test selection may leave entries out
+        raise pytest.UsageError(f"tests/conftest.py SLOW names tests that do not exist (renamed?): {stale}")

@@ -104,7 +104,7 @@ def fake_mllm():
 
 
 @pytest.mark.parametrize("page", [p for p in PAGES if python_blocks(p)])
-def test_python_blocks_run(page, tmp_path, monkeypatch, fake_mllm):
+def test_python_blocks_run(page, tmp_path, monkeypatch, fake_mllm, request):
     blocks = python_blocks(page)
     name = page.rsplit("/", 1)[-1]
     namespace = {"__name__": "__docs__"}
@@ -119,9 +119,7 @@ def test_python_blocks_run(page, tmp_path, monkeypatch, fake_mllm):
         monkeypatch.setenv("JGROUNDING_MLLM_URL", fake_mllm)
         namespace["FAKE_MLLM_URL"] = fake_mllm
     if name == "own_data.md":
-        from own_model import build
-
-        namespace["OWN_CHECKPOINT"] = str(build(tmp_path)[1])
+        namespace["OWN_CHECKPOINT"] = str(request.getfixturevalue("own_model")[1])  # tests/conftest.py
     for i, block in enumerate(blocks):
         try:
             exec(compile(block, f"{page} python block {i + 1}", "exec"), namespace)

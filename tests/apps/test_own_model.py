@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from own_model import build
 
 from jgrounding import safety
 from jgrounding.apps import cli, export, interact, own
@@ -21,8 +20,8 @@ CHANNELS = ["pull_0_mm", "pull_1_mm", "pull_2_mm", "pull_3_mm"]
 
 
 @pytest.fixture(scope="module")
-def own_checkpoint(tmp_path_factory):
-    return build(tmp_path_factory.mktemp("own"))[1]
+def own_checkpoint(own_model):
+    return own_model[1]  # built once per session (tests/conftest.py)
 
 
 def test_import_info_comes_from_the_import(own_checkpoint):

@@ -1,4 +1,5 @@
-"""The package's shape (issues #12, #22): no import cycles between modules, no private names across modules,
+"""The package's shape (issues #12, #22; named apart from tests/semantics/test_structure.py, since pytest's
+default import mode needs unique basenames): no import cycles between modules, no private names across modules,
 a shared-utility module that imports nothing of the package, atomic writes that keep file modes, layers that
 import downward only, and no name (an import, a ``python -m`` command, a dotted path in the docs or a docstring)
 that points at a module or attribute that does not exist."""
@@ -318,7 +319,7 @@ def _layer(module: str) -> int:
     for i in range(len(parts), 0, -1):
         if ".".join(parts[:i]) in LAYERS:
             return LAYERS[".".join(parts[:i])]
-    raise AssertionError(f"{module} has no layer: add its package to LAYERS in tests/test_structure.py")
+    raise AssertionError(f"{module} has no layer: add its package to LAYERS in tests/test_package_structure.py")
 
 
 def _dependencies(path: Path, mods) -> set[str]:
@@ -368,7 +369,7 @@ def test_layers_import_downward_only():
         + "\n".join(f"{a} ({LAYER_NAMES[_layer(a)]}) imports {b} ({LAYER_NAMES[_layer(b)]})" for a, b in new)
     )
     gone = sorted(set(KNOWN_UPWARD) - set(found))
-    assert not gone, f"fixed upward imports: remove them from KNOWN_UPWARD in tests/test_structure.py: {gone}"
+    assert not gone, f"fixed upward imports: remove them from KNOWN_UPWARD in tests/test_package_structure.py: {gone}"
 
 
 def test_the_root_package_imports_only_base_modules_eagerly():
