@@ -208,7 +208,8 @@ def std_error(values) -> float:
 
 
 def compare(a, b, *, draws: int = 10000, seed: int = 0) -> dict:
-    """A vs B over seeds: Welch's t-test and a bootstrap 95 % interval of mean(a) - mean(b)."""
+    """A vs B over seeds: Welch's t-test and a bootstrap 95 % interval of mean(a) - mean(b); the verdict is
+    "higher" / "lower" only when the interval excludes 0 and Welch's p < 0.05, else "not resolved"."""
     from scipy import stats
 
     a, b = np.asarray(a, float), np.asarray(b, float)
@@ -220,7 +221,9 @@ def compare(a, b, *, draws: int = 10000, seed: int = 0) -> dict:
     else:
         t, p = float("nan"), float("nan")
     diff = float(a.mean() - b.mean())
-    verdict = "higher" if lo > 0 else "lower" if hi < 0 else "not resolved"
+    # Both must agree: with few seeds the bootstrap interval is too narrow on its own.
+    significant = np.isfinite(p) and p < 0.05 if np.isfinite(t) else lo > 0 or hi < 0
+    verdict = "not resolved" if not significant else "higher" if lo > 0 else "lower" if hi < 0 else "not resolved"
     return {"diff": diff, "ci95": (float(lo), float(hi)), "t": float(t), "p": float(p), "verdict": verdict}
 
 
