@@ -78,9 +78,18 @@ def test_cli_jsonl_mode_and_direct_tuple(tmp_path):
         (["hi", "--seed", "-3"], "--seed"),
     ],
 )
-def test_cli_usage_errors_exit_2_and_name_choices(args, match):
-    p = run("jgrounding", *args, timeout=60)
-    assert p.returncode == 2 and match in p.stderr, p.stderr
+def test_cli_usage_errors_exit_2_and_name_choices(args, match, capsys):
+    from jgrounding.apps import cli
+
+    with pytest.raises(SystemExit) as e:  # in-process: the parser is what is tested (the shell path: below)
+        cli.main(args)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and match in err, err
+
+
+def test_cli_usage_error_exits_2_from_the_shell():
+    p = run("jgrounding", "--intent", "dancing", timeout=60)
+    assert p.returncode == 2 and "invalid choice" in p.stderr and "nodding" in p.stderr, p.stderr
 
 
 @pytest.mark.slow
