@@ -55,7 +55,9 @@ def _targets(split):
     return idx, target, weight
 
 
-def refine(anchors: np.ndarray, split: np.ndarray, iters: int = 3000, lr: float = 0.02, lam: float = 0.05) -> np.ndarray:
+def refine(
+    anchors: np.ndarray, split: np.ndarray, iters: int = 3000, lr: float = 0.02, lam: float = 0.05
+) -> np.ndarray:
     """``anchors (16, 2 variants, 2 ends, 4, 4)`` -> the refined code, same shape, rounded to 0.01."""
     basis = splines.basis_np(150, 4)
     gram = basis.T @ basis / 150  # RMS^2 between splines = sum_j d_j^T G d_j / 4
