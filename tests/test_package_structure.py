@@ -258,6 +258,21 @@ def test_dotted_names_in_docs_and_docstrings_resolve():
     assert not bad, "dotted names that point nowhere (moved or renamed?):\n" + "\n".join(bad)
 
 
+def test_source_paths_named_in_docs_and_code_exist():
+    """``jgrounding/…/x.py``, ``experiments/x.py``, ``tools/x.py`` and ``tests/…/x.py`` written in the README,
+    docs, code or tests name files that exist (tests moved into stage folders, modules into packages)."""
+    pattern = re.compile(r"(?<![\w./-])((?:jgrounding|experiments|tools|tests)/[\w/.-]*\.py)\b")
+    bad = [
+        f"{f.relative_to(ROOT)}:{i}: {m.group(1)}"
+        for f in _text_files()
+        if f != Path(__file__).resolve()
+        for i, line in enumerate(f.read_text().splitlines(), 1)
+        for m in pattern.finditer(line)
+        if not (ROOT / m.group(1)).exists()
+    ]
+    assert not bad, "paths of files that do not exist (moved?):\n" + "\n".join(bad)
+
+
 # --- Layers run one way (issue #22) --------------------------------------------------------------------------
 # base (the package root, its shared utilities, sim, actuation, semantics, library) -> generators -> training
 # -> evaluation -> apps / serve / client / experiments / tools. A module imports from its own layer or below;

@@ -53,7 +53,7 @@ USER_HEAD = (0.40, 0.0, 1.27, 0.11)  # x, y, z, radius
 # Contact pairs: the user's torso with the last CONTACT_SEGMENTS segments only. Measured with contact
 # off over every held and ramped command in {0, .35, .7, 1}^4 and the whole library, the proximal five
 # segments stay >= 5 cm from the torso and every point of the trunk >= 33 cm from the head, so the
-# pruned pairs could never touch; tests/test_trunk.py checks it. 5 pairs instead of 20 (2 user geoms x
+# pruned pairs could never touch; tests/sim/test_trunk.py checks it. 5 pairs instead of 20 (2 user geoms x
 # 10 segments) cut MJX's collision and constraint work (its cost grows with the number of pairs,
 # touching or not).
 CONTACT_SEGMENTS = 5
