@@ -418,6 +418,19 @@ def restore(path, method: str | None = None, *, allow_library_mismatch: bool = F
     )
 
 
+COND_NORM = 1.0  # sentence embeddings (MiniLM, mean-pooled and normalized) are unit vectors
+
+
+def bound_condition(cond):
+    """Conditions longer than a unit vector scaled back onto the unit sphere; every real one (an intent or a
+    text embedding, norm 1, or the null condition 0) passes unchanged. Without it a condition of norm ~1e3
+    (fuzzing) drives the integrated flow to overflow in 50 Euler steps; the gate would then refuse the
+    non-finite output, but a sampler that cannot overflow is the better guarantee."""
+    cond = jnp.asarray(cond, jnp.float32)
+    norm = jnp.linalg.norm(cond, axis=-1, keepdims=True)
+    return jnp.where(norm > COND_NORM * (1.0 + 1e-3), cond * (COND_NORM / jnp.maximum(norm, 1e-30)), cond)
+
+
 def actuation(
     method: str,
     graphdef,
@@ -448,6 +461,7 @@ def actuation(
     model = nnx.merge(graphdef, params)
     dim = num_tendons * s.representation.length(num_controls)
     config = SampleConfig(sampler, steps, guidance)
+    cond = bound_condition(cond)
     if start is None:
         y = s.generator.sample(model, cond, intensity, key, dim, config)
     else:
