@@ -150,7 +150,8 @@ def sweep_steps(args) -> dict:
         "both hold, so plain few-step sampling of this model needs no reflow or distillation"
         if holds_success and holds_diversity
         else "so few-step sampling of this model alone does not hold quality; jg.sample serves small step counts "
-        "with the shipped 2-rectified model (sweep training)"
+        "with the few-step model experiments.ship chose for them on the distribution metrics "
+        "(assets/checkpoints/shipped.json; sweep fewstep)"
     )
     lines += [
         "",
