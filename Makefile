@@ -35,6 +35,7 @@ test-fast: install
 ablation: install
 	$(PY) -m experiments.ablation
 	$(PY) -m experiments.sweep tau_rms
+	$(PY) -m experiments.references --write
 	$(PY) -m tools.readme
 
 # Beyond Table II: sampler steps and spline-control sweeps (reuse runs/ablation checkpoints), benchmarks.
