@@ -252,34 +252,13 @@ def fuzz(url: str, n: int = 200, seed: int = 0) -> dict:
 # --- start-conditioned quality ---------------------------------------------------------------------------
 
 
-def within_r(u: np.ndarray, intents, intensities, r: float, library=None) -> float:
-    """Share of samples ``u (N, K, 150, N_u)`` (tuple ``n`` = (intents[n], intensities[n])) whose RMS
-    distance to the nearest realization of their tuple in the library (train and held-out splits, all
-    realizations) is at most ``r``. Swap in the benchmark's Prec@r by replacing this function."""
-    import jgrounding as jg
-
-    lib = jg.load_library() if library is None else library
-    demo_u = np.concatenate([lib.train.u, lib.heldout.u])
-    demo_m = np.concatenate([lib.train.intent, lib.heldout.intent])
-    demo_z = np.concatenate([lib.train.intensity, lib.heldout.intensity])
-    hits = total = 0
-    for n, (m, z) in enumerate(zip(intents, intensities)):
-        refs = demo_u[(demo_m == m) & (demo_z == z)]
-        if len(refs) == 0:
-            continue
-        d = np.sqrt(((u[n][:, None] - refs[None]) ** 2).mean(axis=(-2, -1))).min(axis=1)  # (K,)
-        hits += int((d <= r).sum())
-        total += len(d)
-    return hits / max(total, 1)
-
-
-def prec_r(u: np.ndarray, intents, intensities, from_step: int = 0) -> float:
+def prec_r(u: np.ndarray, intents, intensities, from_step: int = 0, ev=None) -> float:
     """The benchmark's Prec@r (:mod:`jgrounding.evaluation.distribution`) of ``u (N, K, 150, N_u)`` against
     the library's evaluation set, over steps ``from_step:`` (r from the same window)."""
     import jgrounding as jg
     from jgrounding.evaluation import distribution
 
-    ev = jg.load_library().evaluation
+    ev = jg.load_library().evaluation if ev is None else ev
     return distribution.score(u, intents, intensities, ev, with_frechet=False, from_step=from_step).mean("prec_r")
 
 
@@ -310,8 +289,8 @@ def start_quality(k: int = 30, seed: int = 0) -> dict:
     return {
         "k": k,
         "tuples": len(tuples),
-        **{name: prec_r(u, ms, zs) for name, u in runs.items()},
-        **{f"{name}_after_first_key": prec_r(u, ms, zs, FIRST_KEY) for name, u in runs.items()},
+        **{name: prec_r(u, ms, zs, ev=lib.evaluation) for name, u in runs.items()},
+        **{f"{name}_after_first_key": prec_r(u, ms, zs, FIRST_KEY, lib.evaluation) for name, u in runs.items()},
     }
 
 

@@ -62,16 +62,16 @@ def main(argv=None) -> int:
     p.add_argument("--library", default=None, help="library .npz (default: the shipped one)")
     p.add_argument("--write", action="store_true", help=f"also write {RESULTS.name} under results/ (for the README)")
     args = p.parse_args(argv)
-    p_k = 30
+    samples_per_tuple = 30
     lib = load_library(args.library)
     lines = []
     failures = []
     if lib.evaluation is not None:
-        scores = distribution.reference_scores(lib, k=p_k)
+        scores = distribution.reference_scores(lib, k=samples_per_tuple)
         r = next(iter(scores.values())).r
         failures = distribution.bracket_failures(scores)
         lines += [
-            f"Reference rows of benchmark v3: K = {p_k} samples of each of the 64 tuples against the evaluation set "
+            f"Reference rows of benchmark v3: K = {samples_per_tuple} samples of each of the 64 tuples against the evaluation set "
             f"({len(lib.evaluation)} realizations, 16 per tuple, never trained on); r = {r:.4f}, tau = "
             f"{metrics.TAU_RMS}.",
             "",

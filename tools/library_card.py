@@ -22,6 +22,7 @@ from jgrounding.library import primitives, screening
 from jgrounding.sim import model as trunk_model
 from jgrounding.sim import render
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe
+from tools import design_signatures
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 CARD_INTENSITY = 2  # pronounced: the intensity the per-intent figures show
@@ -252,7 +253,7 @@ The others ({single}) have one form plus a small left/right tilt of the tip.
 
 *Intensity is pull and tempo.* The emphatic end of a gesture is written as it is; the subtle end pulls
 {primitives.SUBTLE_SCALE:.0%} as hard and reaches each key pose one key moment later (slower); moderate and pronounced
-are 1/3 and 2/3 of the way. The ends were refined, within {__import__("tools.design_signatures").design_signatures.TRUST}
+are 1/3 and 2/3 of the way. The ends were refined, within {design_signatures.TRUST}
 of each written pull, so that two intents at one intensity, two variants and two intensity levels two apart are as
 far apart in RMS as the gestures allow (`python -m tools.design_signatures`, `jgrounding/library/signatures.py`).
 

@@ -148,18 +148,15 @@ def score(
     if samples.ndim != 4:
         raise ValueError(f"samples must be (N tuples, K, T, C), got shape {samples.shape}")
     if from_step:
-        import dataclasses as _dc
-
         samples = samples[:, :, from_step:]
-        ev = _dc.replace(ev, u=ev.u[:, from_step:])
+        ev = dataclasses.replace(ev, u=ev.u[:, from_step:])
     n, k = samples.shape[:2]
     intent, intensity = np.asarray(intent).reshape(n), np.asarray(intensity).reshape(n)
     r = radius(ev) if r is None else float(r)
     groups = _tuples(ev)
     d_all = rms_matrix(samples.reshape(n * k, *samples.shape[2:]), ev.u).reshape(n, k, len(ev.u))
     nearest = d_all.argmin(axis=2)  # (N, K) over the whole evaluation set
-    names = ("prec_tau", "prec_r", "between", "mode_cov", "mode_bal", "mm_ratio", "intent_ret", "intensity_ret")
-    out = {name: np.full(n, np.nan) for name in names}
+    out = {name: np.full(n, np.nan) for name in HEADLINE}
     split = np.zeros(n, bool)
     demo_spread = {}
     for j in range(n):
@@ -270,10 +267,10 @@ def reference_samples(lib, k: int = 30, seed: int = 2) -> dict[str, np.ndarray]:
     out["hedge"], out["tuple_mean"] = np.stack(hedge), np.stack(mean)
     num_intents = int(ev.intent.max()) + 1
     out["other_intent"] = np.stack([fresh[((m + 1) % num_intents, z)] for m, z in tuples])
-    adjacent = {t: both[(t[0], t[1] + 1 if t[1] < 3 else t[1] - 1)] for t in tuples}
-    adj = fresh_realizations({(m, z + 1 if z < 3 else z - 1): both[(m, z)] for m, z in tuples}, seed + 2)
-    out["adjacent_intensity"] = np.stack([adj[(m, z + 1 if z < 3 else z - 1)] for m, z in tuples])
-    del adjacent
+    # the same variant one intensity level away (the next one up; emphatic's is pronounced)
+    nearby = {(m, z): (m, z + 1 if z < 3 else z - 1) for m, z in tuples}
+    adj = fresh_realizations({nearby[t]: both[t] for t in tuples}, seed + 2)
+    out["adjacent_intensity"] = np.stack([adj[nearby[t]] for t in tuples])
     return out
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from flax import nnx
 
 from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
-from jgrounding.generators.flows import INPAINT, sample_flow_time
+from jgrounding.generators.flows import INPAINT, condition_keep, sample_flow_time
 from jgrounding.generators.networks import TwoTimeMLP
 
 MEANFLOW_JUMP_SHARE = 0.25  # share of examples with s != t (the paper's best; the rest is flow matching)
@@ -138,11 +138,7 @@ class _Jump:
     @staticmethod
     def _network(model, batch: dict, key, config: TrainConfig):
         """(key left for the loss, ``net(x, t, s)``) with condition dropout as :class:`flows._Flow` does."""
-        keep = None
-        if config.condition_dropout:
-            key, k_drop = jax.random.split(key)
-            keep = jax.random.bernoulli(k_drop, 1.0 - config.condition_dropout, batch["cond"].shape[:1])
-            keep = keep.astype(jnp.float32)
+        key, keep = condition_keep(batch, key, config)
         return key, lambda x, t, s: model(x, t, s, batch["cond"], batch["intensity"], keep)
 
     def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):

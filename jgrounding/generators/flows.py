@@ -194,6 +194,16 @@ def ddpm_sample(
     return jax.lax.fori_loop(0, n, body, x_T)
 
 
+def condition_keep(batch: dict, key, config: TrainConfig):
+    """(key left, ``keep (B,)`` float mask or None): with condition dropout, each example's condition is kept
+    with probability 1 - ``config.condition_dropout`` (else the null condition is trained, for guidance)."""
+    if not config.condition_dropout:
+        return key, None
+    key, k_drop = jax.random.split(key)
+    keep = jax.random.bernoulli(k_drop, 1.0 - config.condition_dropout, batch["cond"].shape[:1])
+    return key, keep.astype(jnp.float32)
+
+
 class _Flow:
     """Shared by the flow and diffusion generators: the velocity / noise MLP, condition dropout in
     training and classifier-free guidance in sampling. Subclasses give ``loss`` and ``_integrate``."""
@@ -210,11 +220,7 @@ class _Flow:
     @staticmethod
     def _network(model, batch: dict, key, config: TrainConfig):
         """(key left for the loss, ``net(x, t)``); with condition dropout the null condition is trained too."""
-        keep = None
-        if config.condition_dropout:
-            key, k_drop = jax.random.split(key)
-            keep = jax.random.bernoulli(k_drop, 1.0 - config.condition_dropout, batch["cond"].shape[:1])
-            keep = keep.astype(jnp.float32)
+        key, keep = condition_keep(batch, key, config)
         return key, lambda x, t: model(x, t, batch["cond"], batch["intensity"], keep)
 
     def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):
