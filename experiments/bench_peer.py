@@ -28,8 +28,9 @@ from experiments.bench_sample import BATCH, PEER_END, PEER_START, median_s
 from jgrounding import load_library
 from jgrounding.actuation import splines
 from jgrounding.evaluation import latency
-from jgrounding.generators import flows, sampling
+from jgrounding.generators import flows
 from jgrounding.io import write_atomic
+from jgrounding.policy import sampling
 
 ROOT = Path(__file__).resolve().parent.parent
 STEPS = 50

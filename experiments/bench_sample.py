@@ -20,6 +20,7 @@ numbers; nothing here asserts them.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import subprocess
 import sys
@@ -34,9 +35,9 @@ from flax import nnx
 
 from jgrounding import load_library, safety
 from jgrounding.evaluation import latency
-from jgrounding.generators import methods, sampling
 from jgrounding.io import write_atomic
-from jgrounding.training import TrainConfig
+from jgrounding.policy import sampling
+from jgrounding.training import TrainConfig, trainer
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER_MS = {"tuple_spline_rf": 4.87, "tuple_spline_ddpm": 7.86}
@@ -109,15 +110,14 @@ def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], 
         model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
         cond = model.intent_emb[ho.intent]
         single = latency.jg_sample_ms(ho.intent, ho.intensity, key, steps=s, reps=reps)
-        core = latency.core_ms(model.trained, cond, ho.intensity, key, steps=s, reps=reps, guidance=model.guidance)
+        config = dataclasses.replace(model.trained.sample_config, sampler=None, steps=s)
+        core = latency.core_ms(model.trained, cond, ho.intensity, key, config, reps=reps)
         keys = iter(jax.random.split(key, batch_reps + 1))
         many = 1e3 * median_s(
             lambda: sampling.sample(next(keys), list(ho.intent), list(ho.intensity), BATCH // len(ho), steps=s),
             batch_reps,
         )
-        core_b = latency.core_ms(
-            model.trained, cond, ho.intensity, key, steps=s, batch=BATCH, reps=batch_reps, guidance=model.guidance
-        )
+        core_b = latency.core_ms(model.trained, cond, ho.intensity, key, config, batch=BATCH, reps=batch_reps)
         gflop = flops_per_sample(model, s) * BATCH / 1e9
         rate = gflop / (many / 1e3)
         name = Path(model.name).name
@@ -138,7 +138,7 @@ def fixed_cost(lib, steps: int, reps: int) -> list[str]:
     model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
     m, z = int(ho.intent[0]), int(ho.intensity[0])
     key = jax.random.key(0)
-    program = model.program(model.generator.samplers[0], steps, 1, continuity=True)
+    program = model.program(model.config(None, steps), 1, continuity=True)
     args = (
         jax.device_put(np.zeros(model.trained.num_tendons, np.float32)),
         *jax.device_put((np.array([m], np.int32), np.array([z], np.int32))),
@@ -146,35 +146,23 @@ def fixed_cost(lib, steps: int, reps: int) -> list[str]:
         key,
     )
     tr = model.trained
-    params = jax.tree.map(lambda x: x[0], tr.params)
-    dim = tr.num_tendons * tr.num_controls
+    params = tr.seed_params(0)
+    config = dataclasses.replace(tr.sample_config, sampler=None, steps=steps)
     emb = jax.device_put(model.intent_emb)
 
     def ungated(current, intent, intensity, first, k):
         del current
-        kk = jax.random.fold_in(k, first)
-        return methods.actuation(
-            tr.method,
-            tr.graphdef,
-            params,
-            emb[intent],
-            intensity,
-            kk,
-            steps=steps,
-            num_controls=tr.num_controls,
-            num_tendons=tr.num_tendons,
-            guidance=model.guidance,
-        )
+        return tr.actuation(jax.random.fold_in(k, first), emb[intent], intensity, config, params=params)
 
     raw = jax.jit(ungated)
     gated = jax.jit(lambda current, *a: safety.make_safe(ungated(current, *a), safety.MAX_SLEW, current))
     trivial = jax.jit(lambda current, intent, intensity, first, k: current + first)
-    rng = jax.jit(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, dim)))
+    rng = jax.jit(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, tr.dim)))
     out = program.compiled(*args)
     fresh = [jnp.array(out) + 0 for _ in range(reps + 1)]
     it = iter(fresh)
     t = {
-        "public": median_s(lambda: model.sample(key, m, z, steps=steps), reps),
+        "public": median_s(lambda: model.sample(key, m, z, 1, model.config(None, steps)), reps),
         "compiled": median_s(lambda: jax.block_until_ready(program.compiled(*args)), reps),
         "ungated": median_s(lambda: jax.block_until_ready(raw(*args)), reps),
         "gated": median_s(lambda: jax.block_until_ready(gated(*args)), reps),
@@ -220,25 +208,17 @@ def _rows(model: sampling.Model, label: str, configs, lib, reps: int, batch_reps
     key = jax.random.key(0)
     rows = []
     for sampler, s in configs:
-        pub = latency.public_ms(model, ho.intent, ho.intensity, key, sampler=sampler, steps=s, reps=reps)
-        core = latency.core_ms(model.trained, cond, ho.intensity, key, sampler=sampler, steps=s, reps=reps)
+        config = dataclasses.replace(model.trained.sample_config, sampler=sampler, steps=s)
+        pub = latency.public_ms(model, ho.intent, ho.intensity, key, config, reps=reps)
+        core = latency.core_ms(model.trained, cond, ho.intensity, key, config, reps=reps)
         rows.append((f"{label} {sampler} S={s}: single trajectory", pub, core, _goal("single", s)))
         one = latency.batch_ms(
-            model,
-            [int(ho.intent[0])],
-            [int(ho.intensity[0])],
-            key,
-            num_samples=BATCH,
-            sampler=sampler,
-            steps=s,
-            reps=batch_reps,
+            model, [int(ho.intent[0])], [int(ho.intensity[0])], key, config, num_samples=BATCH, reps=batch_reps
         )
         many = latency.batch_ms(
-            model, ho.intent, ho.intensity, key, num_samples=BATCH // len(ho), sampler=sampler, steps=s, reps=batch_reps
+            model, ho.intent, ho.intensity, key, config, num_samples=BATCH // len(ho), reps=batch_reps
         )
-        core_b = latency.core_ms(
-            model.trained, cond, ho.intensity, key, sampler=sampler, steps=s, batch=BATCH, reps=batch_reps
-        )
+        core_b = latency.core_ms(model.trained, cond, ho.intensity, key, config, batch=BATCH, reps=batch_reps)
         rows.append((f"{label} {sampler} S={s}: 1 tuple x {BATCH}", one, core_b, _goal("batch", s)))
         rows.append(
             (f"{label} {sampler} S={s}: {len(ho)} tuples x {BATCH // len(ho)}", many, core_b, _goal("batch", s))
@@ -269,9 +249,9 @@ def train_rows(lib, steps: int) -> list[str]:
     lines = []
     for seeds in ((0,), (0, 1, 2, 3, 4)):
         cfg = TrainConfig(steps=steps)
-        methods.train("tuple_spline_rf", lib, seeds, TrainConfig(steps=cfg.chunk), progress=False)  # compile
+        trainer.fit("tuple_spline_rf", lib, seeds, TrainConfig(steps=cfg.chunk), progress=False)  # compile
         t0 = time.perf_counter()
-        methods.train("tuple_spline_rf", lib, seeds, cfg, progress=False)
+        trainer.fit("tuple_spline_rf", lib, seeds, cfg, progress=False)
         dt = time.perf_counter() - t0
         lines.append(
             f"| train RF {steps} steps, {len(seeds)} seed(s) | {dt:.1f} s | "

@@ -1,7 +1,7 @@
 """Sharded evaluation throughput: ``python -m experiments.bench shard`` (1 vs 4 devices, one run).
 
 The shipped Tuple + Spline + RF checkpoint generates the 64 held-out tuples x 30 samples (1920
-trajectories, Euler S = 50, one batch) through ``methods.generate(..., mesh=distributed.make_mesh())``:
+trajectories, Euler S = 50, one batch) through ``generate.generate(..., mesh=distributed.make_mesh())``:
 the (condition x sample) batch is split over the mesh. On a CPU each device count runs in its own
 process with ``XLA_FLAGS=--xla_force_host_platform_device_count=N`` (XLA fixes the count at start-up);
 the forced host devices share the same cores, so no gain is expected on a small machine: the figure
@@ -30,7 +30,8 @@ def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
     import numpy as np
 
     from jgrounding import load_library
-    from jgrounding.generators import methods, sampling
+    from jgrounding.evaluation import generate
+    from jgrounding.policy import sampling
     from jgrounding.training import distributed
 
     trained, emb = sampling.load()
@@ -42,7 +43,7 @@ def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
         mesh = distributed.make_mesh(size)
 
         def run(i):
-            return methods.generate(
+            return generate.generate(
                 trained, cond, intensity, jax.random.key(i), num_samples=NUM_SAMPLES, batch=total, mesh=mesh
             )
 

@@ -178,7 +178,7 @@ def screening_latency(say, reps: int = 20) -> None:
     """Latency of screened sampling (``jg.sample(..., screen=True)``) beside plain ``jg.sample``, warm, median."""
     import jax
 
-    from jgrounding.generators import sampling
+    from jgrounding.policy import sampling
 
     say("")
     say(

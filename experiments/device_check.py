@@ -18,6 +18,7 @@ standing in for MJX (MJX's trunk compiles for ~70 s on a CPU); the file says so.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
 from pathlib import Path
@@ -26,10 +27,10 @@ import jax
 import numpy as np
 
 from jgrounding import load_library, sim
-from jgrounding.evaluation import latency, metrics
+from jgrounding.evaluation import generate, latency, metrics
 from jgrounding.evaluation import physics as trunk_eval
-from jgrounding.generators import methods, sampling
 from jgrounding.io import write_atomic
+from jgrounding.policy import sampling
 
 ROOT = Path(__file__).resolve().parent.parent
 FULL = {
@@ -104,15 +105,9 @@ def sampler_rows(lib, sizes: dict) -> list[str]:
         call()
         batch = 1e3 * (time.perf_counter() - t0)
         cond = model.intent_emb[ho.intent]
+        config = dataclasses.replace(model.trained.sample_config, sampler=None, steps=s)
         core = latency.core_ms(
-            model.trained,
-            cond,
-            ho.intensity,
-            jax.random.key(2),
-            steps=s,
-            batch=sizes["core_batch"],
-            reps=3,
-            guidance=model.guidance,
+            model.trained, cond, ho.intensity, jax.random.key(2), config, batch=sizes["core_batch"], reps=3
         )
         lines.append(
             f"| {s} | {Path(model.name).name} | {single:.3f} ms | {batch:.1f} ms | {core:.1f} ms | "
@@ -129,9 +124,8 @@ def physics_rows(lib, sizes: dict, mjx_engine: str) -> list[str]:
     n = sizes["tuples"]
     cond = sampling.model().intent_emb[lib.heldout.intent[:n]]
     steps = sizes["steps"][-1]
-    u = methods.generate(
-        trained, cond, lib.heldout.intensity[:n], jax.random.key(3), num_samples=sizes["k"], steps=steps
-    )
+    config = dataclasses.replace(trained.sample_config, steps=steps)
+    u = generate.generate(trained, cond, lib.heldout.intensity[:n], jax.random.key(3), sizes["k"], config)
     lines = [
         "| engine | shape success | shape RMS (m) | shape diversity (m) | feasible | trajectories | seconds |",
         "|---|---|---|---|---|---|---|",

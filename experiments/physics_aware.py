@@ -17,18 +17,17 @@ import jax
 import numpy as np
 
 from jgrounding import load_library, semantics
-from jgrounding.evaluation import metrics
+from jgrounding.evaluation import generate, metrics
 from jgrounding.evaluation import physics as phys_eval
-from jgrounding.generators import methods
 from jgrounding.io import write_atomic
-from jgrounding.training import TrainConfig, physics
+from jgrounding.training import TrainConfig, physics, trainer
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def evaluate(trained, lib, emb, ref, tau_m, k: int = 30) -> dict:
     ho = lib.heldout
-    u = methods.generate(trained, emb[ho.intent], ho.intensity, jax.random.key(1), num_samples=k)
+    u = generate.generate(trained, emb[ho.intent], ho.intensity, jax.random.key(1), num_samples=k)
     rows = []
     for x in u:  # one seed at a time
         res = phys_eval.simulate_samples(x, ref, tau_m)
@@ -59,7 +58,7 @@ def main(argv=None) -> int:
     seeds = tuple(int(s) for s in args.seeds.split(","))
     lib, emb = load_library(), semantics.intent_embeddings()
     ref, tol = phys_eval.library_references(lib, metrics.TAU_RMS)
-    rf = methods.train("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), intent_emb=emb, progress=False)
+    rf = trainer.fit("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), intent_emb=emb, progress=False)
     lines = [
         f"Physics-aware fine-tuning of Tuple + Spline + RF ({len(seeds)} seeds, {args.steps} training steps), "
         f"every held-out sample simulated (64 tuples x 30), shape tolerance {tol.tau_m:.3f} m.",

@@ -71,7 +71,7 @@ def evaluate(path: Path, w: float, steps: int, k: int = 30) -> dict:
 
     import jgrounding as jg
     from jgrounding.evaluation import distribution
-    from jgrounding.generators import sampling
+    from jgrounding.policy import sampling
 
     _set_guidance(path, w)
     sampling.load.cache_clear()  # re-read the recorded guidance
@@ -126,7 +126,7 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE) -> dict:
     for s in sorted(served):
         name, w, m = served[s]
         manifest["scores"][str(s)] = {"checkpoint": name, "guidance": w, **{k: round(v, 4) for k, v in m.items()}}
-    # S' routes to the smallest listed max_steps >= S' (jgrounding.generators.sampling.shipped_checkpoint),
+    # S' routes to the smallest listed max_steps >= S' (jgrounding.policy.sampling.shipped_checkpoint),
     # beyond the largest to the default; so every S below the largest is listed with its winner.
     if any(served[s][0] != DEFAULT for s in served):
         manifest["few_step"] = [{"max_steps": s, "checkpoint": served[s][0]} for s in sorted(served)[:-1]]

@@ -25,17 +25,19 @@ import numpy as np
 from jgrounding import load_library, semantics
 from jgrounding.actuation import splines
 from jgrounding.apps.plotting import plt, save
-from jgrounding.evaluation import latency, metrics
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate, latency, metrics
 from jgrounding.generators import methods
+from jgrounding.generators.trained import Trained
 from jgrounding.io import write_atomic
-from jgrounding.training import TrainConfig
+from jgrounding.training import TrainConfig, checkpoints, trainer
 
 SWEEPS = ("tau_rms", "steps", "controls", "training", "fewstep")
 RESULTS = Path("results")
 
 
-def load_trained(method: str, runs: Path = Path("runs/ablation")) -> methods.Trained:
-    return methods.restore(runs / method, method)
+def load_trained(method: str, runs: Path = Path("runs/ablation")) -> Trained:
+    return checkpoints.restore_trained(runs / method, method)
 
 
 LOW_TAUS = (0.05, 0.10, 0.15, 0.20)  # beyond the paper's range: where do the methods separate?
@@ -93,12 +95,11 @@ def mean_std(x):
 
 
 def _eval(trained, lib, cond, key, k_div, steps, sampler="euler"):
-    u = methods.generate(trained, cond, lib.heldout.intensity, key, num_samples=k_div, steps=steps, sampler=sampler)
+    config = SampleConfig(sampler, steps)
+    u = generate.generate(trained, cond, lib.heldout.intensity, key, num_samples=k_div, config=config)
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
-    ms = latency.latency_ms(
-        trained, lib.heldout.intent, lib.heldout.intensity, key, cond=cond, steps=steps, sampler=sampler
-    )
+    ms = latency.latency_ms(trained, lib.heldout.intent, lib.heldout.intensity, key, config, cond=cond)
     return mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)), mean_std(div), ms
 
 
@@ -171,7 +172,7 @@ def sweep_controls(args) -> dict:
     seeds = tuple(range(args.seeds))
     rows = {}
     for p in range(3, 9):
-        trained = methods.train("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), num_controls=p)
+        trained = trainer.fit("tuple_spline_rf", lib, seeds, TrainConfig(steps=args.steps), num_controls=p)
         succ, div, ms = _eval(trained, lib, cond, jax.random.key(p), args.k_div, 50)
         fit_err = float(
             np.sqrt(((np.asarray(splines.reconstruct(splines.fit(lib.heldout.u, p))) - lib.heldout.u) ** 2).mean())

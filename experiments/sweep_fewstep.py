@@ -18,9 +18,9 @@ import jax
 
 from jgrounding import load_library, semantics
 from jgrounding.apps.plotting import plt, save
-from jgrounding.evaluation import distribution
-from jgrounding.generators import methods
-from jgrounding.training import TrainConfig
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import distribution, generate
+from jgrounding.training import TrainConfig, trainer
 
 RF = "tuple_spline_rf"
 GENERATORS = (  # (label, method, options beyond OPTIONS); the reflow row is trained from the RF row's seeds
@@ -39,7 +39,9 @@ DEFAULT_STEPS = 20_000
 def scores(trained, lib, cond, key, k: int, steps: int) -> dict[str, list[float]]:
     """Per-seed distribution summaries ``{metric: [value per seed]}`` of ``trained`` at ``steps``."""
     ho = lib.heldout
-    u = methods.generate(trained, cond, ho.intensity, key, num_samples=k, steps=steps)  # (seeds, N, K, T, C)
+    u = generate.generate(
+        trained, cond, ho.intensity, key, num_samples=k, config=SampleConfig(steps=steps)
+    )  # (seeds, N, K, T, C)
     per_seed = [
         distribution.score(u[i], ho.intent, ho.intensity, lib.evaluation, with_frechet=False).summary()
         for i in range(len(u))
@@ -54,9 +56,9 @@ def train_all(lib, seeds, steps: int, reflow_pairs: int) -> tuple[dict, dict]:
         config = TrainConfig(steps=steps, **OPTIONS, **extra)
         t0 = time.perf_counter()
         if method == "reflow":
-            trained[label] = methods.reflow(trained["RF (Euler)"], lib, config, pairs_per_example=reflow_pairs)
+            trained[label] = trainer.reflow(trained["RF (Euler)"], lib, config, pairs_per_example=reflow_pairs)
         else:
-            trained[label] = methods.train(method, lib, seeds, config)
+            trained[label] = trainer.fit(method, lib, seeds, config)
         seconds[label] = time.perf_counter() - t0
         print(f"trained {label}: {seconds[label]:.0f} s", flush=True)
     return trained, seconds

@@ -20,9 +20,9 @@ import numpy as np
 
 from jgrounding import load_library, semantics
 from jgrounding.apps.plotting import plt, save
-from jgrounding.evaluation import latency, metrics
-from jgrounding.generators import methods
-from jgrounding.training import TrainConfig
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate, latency, metrics
+from jgrounding.training import TrainConfig, trainer
 
 RF, DDPM = "tuple_spline_rf", "tuple_spline_ddpm"
 FEW = (1, 2, 4)
@@ -55,15 +55,12 @@ def mean_std(x):
 
 def evaluate(trained, lib, cond, key, k_div, sampler, steps, w) -> dict:
     k_gen, k_lat = jax.random.split(key)
-    u = methods.generate(
-        trained, cond, lib.heldout.intensity, k_gen, num_samples=k_div, steps=steps, sampler=sampler, guidance=w
-    )
+    config = SampleConfig(sampler, steps, w)
+    u = generate.generate(trained, cond, lib.heldout.intensity, k_gen, num_samples=k_div, config=config)
     r = np.asarray(metrics.rms(u, lib.heldout.u[None, :, None]))  # (seeds, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)
     cov = np.asarray(metrics.coverage(u, metrics.tuple_realizations(lib)[None])).mean(axis=1)
-    ms = latency.latency_ms(
-        trained, lib.heldout.intent, lib.heldout.intensity, k_lat, cond=cond, steps=steps, sampler=sampler, guidance=w
-    )
+    ms = latency.latency_ms(trained, lib.heldout.intent, lib.heldout.intensity, k_lat, config, cond=cond)
     nfe = steps * EVALS_PER_STEP[sampler] * (2 if w else 1)
     return {
         "success": mean_std((r[:, :, 0] <= metrics.TAU_RMS).mean(1)),
@@ -116,7 +113,7 @@ class Sweep:
         }
         t0 = time.perf_counter()
         if teacher:
-            self.trained[name] = methods.reflow(
+            self.trained[name] = trainer.reflow(
                 self.trained[teacher],
                 self.lib,
                 cfg,
@@ -126,7 +123,7 @@ class Sweep:
                 progress=False,
             )
         else:
-            self.trained[name] = methods.train(method, self.lib, self.seeds, cfg, intent_emb=self.emb, progress=False)
+            self.trained[name] = trainer.fit(method, self.lib, self.seeds, cfg, intent_emb=self.emb, progress=False)
         self.configs[name]["train_s"] = time.perf_counter() - t0
 
     def eval(self, name, sampler="euler", steps=50, w=0.0) -> str:

@@ -22,18 +22,28 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
+from jgrounding import config as configs
 from jgrounding import library, load_library, semantics, training
-from jgrounding.config import ModelConfig, SampleConfig
 from jgrounding.generators import methods
-from jgrounding.training import checkpoints, distributed
+from jgrounding.training import checkpoints, distributed, trainer
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description="Train one Table II method.")
     p.add_argument("--method", choices=methods.ALL_METHODS, default="tuple_spline_rf")
-    p.add_argument("--steps", type=int, default=training.TrainConfig.steps)
-    p.add_argument("--chunk", type=int, default=training.TrainConfig.chunk)
+    p.add_argument(
+        "--config", default="paper", choices=tuple(configs.CONFIGS), help="named configuration (jgrounding.config)"
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="override one setting of the model, train or sample section, e.g. --set train.ema_decay=0.999",
+    )
+    p.add_argument("--steps", type=int, help=f"= --set train.steps=... (default {training.TrainConfig.steps})")
+    p.add_argument("--chunk", type=int, help=f"= --set train.chunk=... (default {training.TrainConfig.chunk})")
     p.add_argument("--seeds", default="0", help="comma-separated seeds, e.g. 0,1,2,3,4")
     p.add_argument("--out", required=True, help="checkpoint directory (resumes if it holds a partial run)")
     p.add_argument("--num-controls", type=int, default=4)
@@ -47,12 +57,10 @@ def main(argv=None) -> int:
         "(the shipped model; the evaluation set is never trained on)",
     )
     opts = p.add_argument_group("generator options (issue #16; off by default = the paper's Table I)")
-    opts.add_argument("--ema-decay", type=float, default=0.0, help="keep and ship an EMA of the parameters (0 = off)")
-    opts.add_argument("--time-sampler", default="uniform", help="flow-time distribution: uniform, logit_normal, beta")
-    opts.add_argument("--condition-dropout", type=float, default=0.0, help="train the null condition (for guidance)")
-    opts.add_argument(
-        "--guidance", type=float, default=0.0, help="guidance weight w recorded as the checkpoint's sampling default"
-    )
+    opts.add_argument("--ema-decay", type=float, help="= --set train.ema_decay=...: ship an EMA (0 = off)")
+    opts.add_argument("--time-sampler", help="= --set train.time_sampler=...: uniform, logit_normal, beta")
+    opts.add_argument("--condition-dropout", type=float, help="= --set train.condition_dropout=... (for guidance)")
+    opts.add_argument("--guidance", type=float, help="= --set sample.guidance=...: the checkpoint's sampling default")
     opts.add_argument(
         "--reflow-from",
         help="train a 2-rectified flow from this RF checkpoint's own samples (seeds of --seeds; not resumable)",
@@ -65,18 +73,21 @@ def main(argv=None) -> int:
         seeds = ()
     if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         p.error(f"--seeds must be distinct non-negative integers separated by commas, e.g. 0,1,2; got {args.seeds!r}")
+    flags = {  # the flags kept from before the composed config: each is one override
+        "steps": "train.steps",
+        "chunk": "train.chunk",
+        "ema_decay": "train.ema_decay",
+        "time_sampler": "train.time_sampler",
+        "condition_dropout": "train.condition_dropout",
+        "guidance": "sample.guidance",
+    }
+    overrides = [f"{field}={getattr(args, flag)}" for flag, field in flags.items() if getattr(args, flag) is not None]
     try:
-        config = training.TrainConfig(
-            steps=args.steps,
-            chunk=args.chunk,
-            ema_decay=args.ema_decay,
-            time_sampler=args.time_sampler,
-            condition_dropout=args.condition_dropout,
-        )
-        sample_cfg = SampleConfig(guidance=args.guidance)
+        full = configs.get(args.config, [*overrides, *args.set])
+        config, sample_cfg, model_cfg = full.train, full.sample, full.model
         methods.check_options(args.method, config)
     except ValueError as e:
-        p.error(str(e).replace("TrainConfig.", "--").replace("SampleConfig.", "--").replace("_", "-"))
+        p.error(str(e))
     distributed.initialize()  # multi-host only; a no-op on one machine
     if args.devices < 0 or args.devices > jax.device_count():
         p.error(f"--devices must be in 0..{jax.device_count()} (0 = all), got {args.devices}")
@@ -90,7 +101,7 @@ def main(argv=None) -> int:
         lib = library.with_all_pairs(lib)
     num_tendons = int(lib.train.u.shape[-1])
     text_emb = None
-    if methods.spec(args.method).condition == "raw":
+    if methods.spec(args.method).condition.needs_text:
         texts = [t for row in lib.train.texts for t in row]
         text_emb = semantics.embed(texts).reshape(len(lib.train), -1, 384)
     tuples = sorted({(int(m), int(z)) for m, z in zip(lib.train.intent, lib.train.intensity)})
@@ -98,7 +109,7 @@ def main(argv=None) -> int:
         "method": args.method,
         "seeds": list(seeds),
         "num_controls": args.num_controls,
-        "model": dataclasses.asdict(ModelConfig()),
+        "model": dataclasses.asdict(model_cfg),
         "config": dataclasses.asdict(config),
         "sample": dataclasses.asdict(sample_cfg),
         "library_sha256": library.file_hash(lib.path),
@@ -116,7 +127,7 @@ def main(argv=None) -> int:
         return reflow(args, lib, config, meta, seeds, writer)
 
     def template():
-        graphdef, params = methods.init(args.method, seeds, args.num_controls, num_tendons)
+        graphdef, params = methods.init(args.method, seeds, args.num_controls, num_tendons, model_cfg)
         keys = jnp.stack([jax.random.fold_in(jax.random.key(s), 1) for s in seeds])
         return jax.vmap(lambda pp, k: training.init_state(pp, k, config))(params, keys)
 
@@ -146,7 +157,7 @@ def main(argv=None) -> int:
         if writer:
             checkpoints.save(run_dir, to_tree(states), {**meta, "step": done})
 
-    trained = methods.train(
+    trained = trainer.fit(
         args.method,
         lib,
         seeds,
@@ -156,11 +167,13 @@ def main(argv=None) -> int:
         initial_states=initial,
         on_chunk=on_chunk,
         mesh=mesh,
+        model=model_cfg,
     )
+    trained = dataclasses.replace(trained, sample_config=sample_cfg)  # the sampling default it records
     final = jax.tree.map(lambda x: x[:1], trained.params) if len(seeds) > 1 else trained.params
     if writer:
         checkpoints.save(
-            args.out, final, {**meta, **methods.checkpoint_meta(trained), "seeds": [seeds[0]], "step": args.steps}
+            args.out, final, {**meta, **checkpoints.meta_of(trained), "seeds": [seeds[0]], "step": args.steps}
         )
         import shutil
 
@@ -172,17 +185,17 @@ def main(argv=None) -> int:
 def reflow(args, lib, config, meta, seeds, writer) -> int:
     """2-rectified flow of the checkpoint ``--reflow-from`` (its guidance w is distilled in: the result
     samples with w = 0)."""
-    teacher = methods.restore(args.reflow_from, "tuple_spline_rf")
+    teacher = checkpoints.restore_trained(args.reflow_from, "tuple_spline_rf")
     teacher_meta = checkpoints.read_meta(args.reflow_from)
     w = float(teacher_meta.get("sample", {}).get("guidance", 0.0))
-    trained = methods.reflow(teacher, lib, config, pairs_per_example=args.reflow_pairs, teacher_guidance=w)
+    trained = trainer.reflow(teacher, lib, config, pairs_per_example=args.reflow_pairs, teacher_guidance=w)
     if writer:
         checkpoints.save(
             args.out,
             trained.params,
             {
                 **meta,
-                **methods.checkpoint_meta(trained),
+                **checkpoints.meta_of(trained),
                 "step": args.steps,
                 "reflow_of": str(args.reflow_from),
                 "teacher_guidance": w,

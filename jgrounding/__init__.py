@@ -27,7 +27,7 @@ __version__ = "0.1.0"
 _LAZY = {
     "ground": ("jgrounding.semantics", "ground"),
     "ground_many": ("jgrounding.semantics", "ground_many"),
-    "sample": ("jgrounding.generators.sampling", "sample"),
+    "sample": ("jgrounding.policy.sampling", "sample"),
     "load_library": ("jgrounding.library", "load_library"),
     "sim": ("jgrounding.sim", None),  # the trunk simulation, named like its package (jgrounding.sim)
     "trunk": ("jgrounding.sim", None),  # an older alias of jg.sim, kept so existing code keeps working

@@ -1,23 +1,37 @@
-"""Configurations as frozen dataclasses whose defaults are the paper's Table I, and a named registry.
+"""One composed configuration: every setting of a run in one frozen tree, named entries and overrides.
 
-- :class:`ModelConfig`: network sizes (recorded in every checkpoint, so a checkpoint rebuilds its own
-  network).
+In the spirit of MuJoCo Playground's ``default_config()`` and big_vision's config files:
+
+- :class:`ModelConfig`: network sizes (recorded in every checkpoint, so a checkpoint rebuilds its own network).
 - :class:`TrainConfig`: AdamW, batch, steps, and the generator options of issue #16 (EMA, flow-time
   distribution, condition dropout for classifier-free guidance), each off by default.
 - :class:`SampleConfig`: sampler, steps S, guidance weight w.
-- :data:`CONFIGS`: named (model, train, sample) triples; ``paper`` is Table I. What the shipped
-  checkpoints were trained with is recorded in their own meta.json (chosen by
-  ``python -m experiments.sweep training``, trained by ``python -m experiments.ship``).
+- :class:`PhysicsConfig`: the physics-aware fine-tuning of the ablation's extra row.
+- :class:`EvalConfig`: what the ablation evaluates (seeds, K, tau, rows, engine, library, output).
+- :class:`Config`: all of them; :data:`CONFIGS` names entries (``paper`` = Table I, ``quick`` = the smoke
+  run), each a function whose docstring opens with the command it serves and the result it should give;
+  :func:`get` applies generic overrides ``"train.steps=2000"`` (``--set`` on the command lines) and
+  :func:`to_dict` is what every result and checkpoint records.
 
-This module imports nothing from the package, so every stage can import it without a cycle.
+The sizes of Table I that everything shares (T, P, N_u, tau) and the sampler names are defined here once.
+This module imports nothing from the package, so every stage can import it without a cycle. What the shipped
+checkpoints were trained with is recorded in their own meta.json (``python -m experiments.ship``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import numbers
+import types
+import typing
 
-SAMPLERS = ("euler", "midpoint", "rk4", "ancestral", "ddim", "none")  # ancestral/ddim: DDPM; none: regressors
+NUM_STEPS = 150  # T of Table I: steps of a trajectory (5 s at 30 Hz)
+NUM_CONTROLS = 4  # P of Table I: Catmull-Rom controls per tendon
+NUM_TENDONS = 4  # N_u of the built-in trunk (an imported library may have another number)
+TAU_RMS = 0.35  # tau of Table I: a sample within this normalized RMS of its reference is a success
+RF_SAMPLERS = ("euler", "midpoint", "rk4")  # ODE integrators of a rectified flow (Euler is Table I's)
+DDPM_SAMPLERS = ("ancestral", "ddim")
+SAMPLERS = (*RF_SAMPLERS, *DDPM_SAMPLERS, "none")  # none: the deterministic regressors
 TIME_SAMPLERS = ("uniform", "logit_normal", "beta")  # generators.flows.TIME_SAMPLERS implements these
 
 
@@ -98,17 +112,59 @@ class TrainConfig:
 
 @dataclasses.dataclass(frozen=True)
 class SampleConfig:
-    """Sampling of Table I (Euler, S = 50); ``guidance`` w: v = v_c + w (v_c - v_null), 0 = off."""
+    """Sampling of Table I (S = 50 steps of the generator's default sampler: Euler for a rectified flow,
+    ancestral for a DDPM); ``guidance`` w: v = v_c + w (v_c - v_null), 0 = off. ``sampler`` None: the
+    generator's default; a name it does not have is refused when sampling (never silently replaced)."""
 
-    sampler: str = "euler"
+    sampler: str | None = None
     steps: int = 50
     guidance: float = 0.0
 
     def __post_init__(self):
-        if self.sampler not in SAMPLERS:
+        if self.sampler is not None and self.sampler not in SAMPLERS:
             raise ValueError(f"SampleConfig.sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
         _integer("SampleConfig", "steps", self.steps, 1)
         _real("SampleConfig", "guidance", self.guidance, 0.0, 20.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsConfig:
+    """Physics-aware fine-tuning (the ablation's extra row, :mod:`jgrounding.training.physics`)."""
+
+    rounds: int = 2  # generate -> simulate -> fine-tune rounds
+    candidates: int = 16  # samples per tuple per round (64 tuples: 1024 rollouts per seed and round)
+    steps: int = 1000  # fine-tuning steps per round (Table I optimizer, batch 8)
+    margin: float = 0.2  # keep candidates with feasibility margin >= this (0 = just feasible)
+    learning_rate: float = 3e-4  # below Table I's 1e-3: fine-tuning, not training (1e-3 drifted: RMS up)
+    engine: str = "auto"  # jgrounding.sim.rollout engine
+
+    def __post_init__(self):
+        for name in ("rounds", "candidates", "steps"):
+            _integer("PhysicsConfig", name, getattr(self, name), 1)
+        _real("PhysicsConfig", "margin", self.margin, 0.0, 1e3)
+        _real("PhysicsConfig", "learning_rate", self.learning_rate, 0.0, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalConfig:
+    """What the ablation trains and evaluates (Table I: 5 seeds, K_div = 30, tau = 0.35)."""
+
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    num_samples: int = 30  # K_div samples per held-out tuple
+    tau: float = TAU_RMS
+    rows: tuple[str, ...] = ()  # registry names of the rows; () = Table II's five and the physics-aware RF
+    engine: str = "auto"  # sim.rollout engine of the physics columns: native on CPU, MJX on an accelerator
+    devices: int = 1  # > 1 or 0 (= all): seeds (training) and samples (evaluation) split over a device mesh
+    library: str | None = None  # library .npz (None: the shipped one), e.g. imported from recordings
+    out: str = "results"
+    runs: str = "runs/ablation"
+
+    def __post_init__(self):
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
+            raise ValueError(f"EvalConfig.seeds must be distinct non-negative integers, got {self.seeds!r}")
+        _integer("EvalConfig", "num_samples", self.num_samples, 1)
+        _real("EvalConfig", "tau", self.tau, 0.0, 10.0)
+        _integer("EvalConfig", "devices", self.devices, 0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,18 +172,106 @@ class Config:
     model: ModelConfig = ModelConfig()
     train: TrainConfig = TrainConfig()
     sample: SampleConfig = SampleConfig()
+    physics: PhysicsConfig = PhysicsConfig()
+    eval: EvalConfig = EvalConfig()
 
 
-CONFIGS = {
-    "paper": Config(),  # Table I
-}
+def paper() -> Config:
+    """``python -m experiments.ablation`` (``make ablation``): Table II on the shipped library, 5 seeds x
+    10,000 steps, K_div = 30, S = 50, tau = 0.35, every sample simulated, plus the physics-aware RF row.
+    Gives results/ablation.{md,json}: every row's success, diversity, time, physics and distribution columns
+    (the shipped model through jg.sample meets the benchmark's goals; about 30 min on 2 CPU cores)."""
+    return Config()
 
 
-def get(name: str) -> Config:
-    """The named configuration; ``ValueError`` listing the valid names."""
+def quick() -> Config:
+    """``python -m experiments.ablation --config quick`` (``--quick``; the tests' end-to-end runs): 2 seeds x
+    300 steps, K_div = 8, one short physics round. Gives the same files in well under a minute per method;
+    its numbers only show that the path runs (300 steps do not train a model)."""
+    return Config(
+        train=TrainConfig(steps=300, chunk=300),
+        physics=PhysicsConfig(rounds=1, candidates=4, steps=100),
+        eval=EvalConfig(seeds=(0, 1), num_samples=8),
+    )
+
+
+CONFIGS = {"paper": paper, "quick": quick}
+
+
+def _parse(owner: str, name: str, hint, text: str):
+    """``text`` as a value of the field's type hint (int, float, str, bool, None-able, tuple of int/str)."""
+    args = typing.get_args(hint)
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        if text.lower() in ("none", "null", ""):
+            return None
+        return _parse(owner, name, next(a for a in args if a is not type(None)), text)
+    if typing.get_origin(hint) is tuple:
+        return tuple(_parse(owner, name, args[0], t.strip()) for t in text.split(",") if t.strip())
+    if hint is bool:
+        if text.lower() not in ("true", "false", "1", "0"):
+            raise ValueError(f"{owner}.{name} is true or false, got {text!r}")
+        return text.lower() in ("true", "1")
+    try:
+        return hint(text)
+    except ValueError:
+        kind = {int: "an integer", float: "a number"}.get(hint, hint.__name__)
+        raise ValueError(f"{owner}.{name} must be {kind}, got {text!r}") from None
+
+
+def override(cfg, assignment: str):
+    """``cfg`` with one ``"section.field=value"`` (or ``"field=value"`` on a section) applied; ``ValueError``
+    naming the valid sections or fields."""
+    path, sep, text = assignment.partition("=")
+    if not sep or not path.strip():
+        raise ValueError(f"an override is section.field=value (e.g. train.steps=2000), got {assignment!r}")
+    head, _, rest = path.strip().partition(".")
+    hints = typing.get_type_hints(type(cfg))
+    names = [f.name for f in dataclasses.fields(cfg)]
+    owner = type(cfg).__name__
+    if head not in names:
+        raise ValueError(f"{owner} has no field {head!r}; valid: {', '.join(names)}")
+    value = getattr(cfg, head)
+    if rest:
+        if not dataclasses.is_dataclass(value):
+            raise ValueError(f"{owner}.{head} is a value, not a section; write {head}={text}")
+        return dataclasses.replace(cfg, **{head: override(value, f"{rest}={text}")})
+    if dataclasses.is_dataclass(value):
+        fields = ", ".join(f"{head}.{f.name}" for f in dataclasses.fields(value))
+        raise ValueError(f"{owner}.{head} is a section; set one of its fields: {fields}")
+    return dataclasses.replace(cfg, **{head: _parse(owner, head, hints[head], text.strip())})
+
+
+def get(name: str = "paper", overrides=()) -> Config:
+    """The named configuration with ``overrides`` (``"section.field=value"`` strings) applied in order;
+    ``ValueError`` listing the valid names, sections or fields."""
     if name not in CONFIGS:
         raise ValueError(f"unknown config {name!r}; valid: {', '.join(CONFIGS)}")
-    return CONFIGS[name]
+    cfg = CONFIGS[name]()
+    for assignment in overrides:
+        cfg = override(cfg, assignment)
+    return cfg
+
+
+def to_dict(cfg) -> dict:
+    """The whole configuration as plain JSON-ready data (what results and checkpoints record)."""
+    return dataclasses.asdict(cfg)
+
+
+def from_dict(data: dict) -> Config:
+    """The :class:`Config` that :func:`to_dict` wrote; unknown sections or fields are refused."""
+    sections = {f.name: f.type for f in dataclasses.fields(Config)}
+    hints = typing.get_type_hints(Config)
+    unknown = set(data) - set(sections)
+    if unknown:
+        raise ValueError(f"unknown config sections {sorted(unknown)}; valid: {', '.join(sections)}")
+    out = {}
+    for name, value in data.items():
+        cls = hints[name]
+        valid = {f.name: f for f in dataclasses.fields(cls)}
+        if set(value) - set(valid):
+            raise ValueError(f"unknown {name} fields {sorted(set(value) - set(valid))}; valid: {', '.join(valid)}")
+        out[name] = cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in value.items()})
+    return Config(**out)
 
 
 def model_config(meta: dict) -> ModelConfig:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import stat
@@ -43,8 +44,16 @@ def sha256_bytes(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file's contents, read in chunks."""
+def sha256_file(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's contents, read in chunks; a file is hashed once per version (cached by its
+    path, size and modification time), so checking several checkpoints against one library reads it once."""
+    st = os.stat(path)
+    return _sha256(os.path.realpath(path), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _sha256(path: str, mtime_ns: int, size: int, chunk: int = 1 << 20) -> str:
+    del mtime_ns, size  # cache keys
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(chunk), b""):

@@ -40,7 +40,7 @@ SLOW = {
     "tests/generators/test_generators.py::test_resumed_training_equals_uninterrupted": 8.1,
     "tests/generators/test_generators.py::test_cnn_regressor_collapses_to_the_mean": 4.9,
     "tests/generators/test_generators.py::test_distributional_generators_recover_both_modes": 6.8,
-    "tests/generators/test_sampling.py::test_samples_do_not_depend_on_the_batch_bucket_or_chunking": 2.7,
+    "tests/policy/test_sampling.py::test_samples_do_not_depend_on_the_batch_bucket_or_chunking": 2.7,
     "tests/evaluation/test_distribution.py::test_reference_brackets_hold": 31.7,  # the refs fixture (k=8)
     "tests/evaluation/test_distribution.py::test_perfect_replay_ranks_above_hedge_and_collapse": 0.1,
     "tests/evaluation/test_distribution.py::test_prec_at_tau_alone_cannot_tell_them_apart": 0.1,

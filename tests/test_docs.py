@@ -55,8 +55,8 @@ SIGNATURE = re.compile(r"^[\w.]+\(.*\)( -> .+)?\n?$")
 SMALL = {  # page -> [(text on the page, what the test runs instead)]
     "distributed.md": [
         (
-            'methods.train("tuple_spline_rf", lib, seeds=(0, 1, 2, 3, 4), mesh=mesh)',
-            'methods.train("tuple_spline_rf", lib, seeds=(0,), mesh=mesh, config=__import__("jgrounding.training",'
+            'trainer.fit("tuple_spline_rf", lib, seeds=(0, 1, 2, 3, 4), mesh=mesh)',
+            'trainer.fit("tuple_spline_rf", lib, seeds=(0,), mesh=mesh, config=__import__("jgrounding.training",'
             ' fromlist=["TrainConfig"]).TrainConfig(steps=2, chunk=2), progress=False)',
         ),
         ("num_samples=30, mesh=mesh", "num_samples=2, mesh=mesh"),

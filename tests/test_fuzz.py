@@ -23,12 +23,15 @@ from hypothesis import strategies as st
 import jgrounding as jg
 from jgrounding import safety
 from jgrounding.apps import cli
-from jgrounding.generators import flows, methods, sampling
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate
+from jgrounding.generators import flows
+from jgrounding.policy import sampling
 from jgrounding.vocabulary import INTENSITIES, INTENTS, normalise
 
 BATCH = 2048
 FUZZ_BATCHES = 52  # 52 x 2048 = 106,496 conditions, each with its own noise
-SAMPLER_CONFIGS = (("euler", 50), ("euler", 1), ("midpoint", 4), ("rk4", 2))
+SAMPLER_CONFIGS = tuple(SampleConfig(s, n) for s, n in (("euler", 50), ("euler", 1), ("midpoint", 4), ("rk4", 2)))
 CONDITION_KINDS = ("vocabulary", "direction", "huge", "tiny", "flipped", "zeros", "spikes", "mixed")
 
 
@@ -98,7 +101,7 @@ def test_sampling_path_is_safe_for_1e5_fuzzed_conditions_and_keys(model):
         cond = _conditions(kind, rng, emb, scale)
         assert cond.shape == (BATCH, 384) and np.all(np.isfinite(cond)) and np.abs(cond).max() <= 1e4
         intensity = rng.integers(0, 4, BATCH).astype(np.int32)
-        fn = methods.generate_fn(trained.method, trained.graphdef, *config, trained.num_controls)
+        fn = generate.generate_fn(trained, config)
         u = np.asarray(fn(trained.params, jnp.asarray(cond), jnp.asarray(intensity), _key(key_kind, seed, words)[None]))
         assert u.shape == (1, BATCH, 150, 4)
         _assert_safe(u)
@@ -120,7 +123,7 @@ def test_non_finite_conditions_are_never_emitted(rows, value, seed):
     trained, emb = sampling.load()
     cond = np.array(emb[np.arange(32) % 16], np.float32)
     cond[rows, seed % 384] = value
-    fn = methods.generate_fn(trained.method, trained.graphdef, "euler", 50, trained.num_controls)
+    fn = generate.generate_fn(trained, SampleConfig())
     u = np.asarray(fn(trained.params, jnp.asarray(cond), jnp.zeros(32, jnp.int32), jax.random.key(seed)[None]))[0]
     if np.isnan(value):
         assert np.isnan(u[rows]).any()  # propagated, never repaired into something plausible
@@ -208,7 +211,7 @@ BAD = {
         "1..1000",
     ),
     "sampler": (
-        st.text(max_size=10).filter(lambda s: s not in flows.SAMPLERS) | JUNK.filter(lambda v: v is not None),
+        st.text(max_size=10).filter(lambda s: s not in flows.RF_SAMPLERS) | JUNK.filter(lambda v: v is not None),
         "euler, midpoint, rk4",
     ),  # None: the default sampler
     "key": (

@@ -275,7 +275,8 @@ def test_source_paths_named_in_docs_and_code_exist():
 
 # --- Layers run one way (issue #22) --------------------------------------------------------------------------
 # base (the package root, its shared utilities, sim, actuation, semantics, library) -> generators -> training
-# -> evaluation -> apps / serve / client / experiments / tools. A module imports from its own layer or below;
+# -> policy (jg.sample: restores checkpoints, so above training) -> evaluation -> apps / serve / client /
+# experiments / tools. A module imports from its own layer or below;
 # lazy imports inside functions count. ``from jgrounding import sample`` and ``jg.sample`` count as what the
 # root's lazy table resolves them to.
 
@@ -291,42 +292,22 @@ LAYERS = {
     "jgrounding.library": 0,
     "jgrounding.generators": 1,
     "jgrounding.training": 2,
-    "jgrounding.evaluation": 3,
-    "jgrounding.apps": 4,
-    "jgrounding.serve": 4,
-    "jgrounding.client": 4,
-    "jgrounding.__main__": 4,
-    "experiments": 4,
-    "tools": 4,
+    "jgrounding.policy": 3,
+    "jgrounding.evaluation": 4,
+    "jgrounding.apps": 5,
+    "jgrounding.serve": 5,
+    "jgrounding.client": 5,
+    "jgrounding.__main__": 5,
+    "experiments": 5,
+    "tools": 5,
 }
-LAYER_NAMES = ("base", "generators", "training", "evaluation", "apps/experiments/tools")
+LAYER_NAMES = ("base", "generators", "training", "policy", "evaluation", "apps/experiments/tools")
 
-# Today's known upward imports: (importer, imported module) -> why it is there. Each is a debt that issue #22's
-# refactor (a trained model that owns its sampling; training, restore and screening moved down or up) removes;
-# remove the entry with it. A NEW upward import fails the test; so does an entry that no longer occurs.
-KNOWN_UPWARD = {
-    ("jgrounding.generators.methods", "jgrounding.training"): (
-        "methods.train / reflow live in the registry module and call the training loop (train_state, EMA, mesh)"
-    ),
-    ("jgrounding.generators.methods", "jgrounding.training.checkpoints"): (
-        "methods.restore / save_trained read and write checkpoints beside the registry"
-    ),
-    ("jgrounding.generators.methods", "jgrounding.training.distributed"): (
-        "methods.train / generate shard seeds and samples over a device mesh"
-    ),
-    ("jgrounding.generators.sampling", "jgrounding.training.checkpoints"): (
-        "jg.sample restores the shipped checkpoint and checks its library (sampling.check_library)"
-    ),
-    ("jgrounding.generators.sampling", "jgrounding.evaluation.physics"): (
-        "sampling.screened (jg.sample(..., screen=True)) simulates candidates with the physics evaluation"
-    ),
-    ("jgrounding.training.physics", "jgrounding.evaluation.physics"): (
-        "physics-aware fine-tuning screens its candidates with the physics evaluation"
-    ),
-    ("jgrounding.library.build", "jgrounding.evaluation.metrics"): (
-        "library.bracket_distances (the reference brackets) measures RMS with evaluation.metrics.rms"
-    ),
-}
+# Known upward imports: (importer, imported module) -> why it is there. Issue #22's refactor removed the last
+# seven (a trained model that owns its sampling, training and restore in training/, batch generation in
+# evaluation/, screening in sim/, the public sampler in policy/); keep it empty. A NEW upward import fails the
+# test; so does an entry that no longer occurs.
+KNOWN_UPWARD: dict = {}
 
 
 def _layer(module: str) -> int:
@@ -412,7 +393,7 @@ def test_the_layer_check_sees_lazy_and_facade_imports(tmp_path):
     assert _dependencies(src, mods) == {
         "jgrounding",
         "jgrounding.evaluation.metrics",
-        "jgrounding.generators.sampling",
+        "jgrounding.policy.sampling",
         "jgrounding.semantics",
     }
     src.write_text("from jgrounding import export\nimport jgrounding.trunk_model\n")

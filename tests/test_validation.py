@@ -15,7 +15,8 @@ import jgrounding as jg
 from jgrounding import library, semantics, training
 from jgrounding.actuation import splines
 from jgrounding.apps import cli
-from jgrounding.generators import methods, sampling
+from jgrounding.generators import methods
+from jgrounding.policy import sampling
 from jgrounding.training import checkpoints
 
 
@@ -110,8 +111,10 @@ def test_cli_refuses_unusable_out_folders_and_undecodable_text(tmp_path):
         (["--seeds", "0,x"], "--seeds must be distinct non-negative integers"),
         (["--seeds", "1,1"], "--seeds must be distinct"),
         (["--seeds", "-2"], "--seeds must be distinct non-negative"),
-        (["--chunk", "0"], "--chunk must be an integer >= 1"),
-        (["--steps", "-5"], "--steps must be an integer >= 0"),
+        (["--chunk", "0"], "TrainConfig.chunk must be an integer >= 1"),
+        (["--steps", "-5"], "TrainConfig.steps must be an integer >= 0"),
+        (["--set", "train.ema=0.9"], "TrainConfig has no field 'ema'; valid: steps"),
+        (["--set", "train.time_sampler=gauss"], "TrainConfig.time_sampler must be one of uniform, logit_normal, beta"),
         (["--devices", "99"], "--devices must be in 0.."),
     ],
 )

@@ -45,7 +45,7 @@ def identity() -> dict[str, str]:
     """What the cases depend on besides the code: the digest of every shipped checkpoint's parameters, the
     shipped manifest, the library and the intent embeddings."""
     from jgrounding import io
-    from jgrounding.generators import sampling
+    from jgrounding.policy import sampling
     from jgrounding.training import checkpoints
 
     assets = sampling.DEFAULT_CHECKPOINT.parent.parent

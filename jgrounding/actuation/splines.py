@@ -24,9 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-NUM_STEPS = 150  # T of Table I
-NUM_CHANNELS = 4  # N_u of Table I
-NUM_CONTROLS = 4  # P of Table I
+from jgrounding.config import NUM_CONTROLS, NUM_STEPS  # noqa: E402  (T and P of Table I, defined once)
 
 
 def _check_sizes(num_steps: int, num_controls: int) -> None:

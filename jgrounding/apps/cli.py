@@ -154,8 +154,8 @@ def run(args: argparse.Namespace) -> int:
 
     from jgrounding import vocabulary
     from jgrounding.apps import export, plotting
-    from jgrounding.generators import sampling
     from jgrounding.io import write_atomic
+    from jgrounding.policy import sampling
 
     say = _Printer(args.quiet, args.jsonl)
     out = Path(args.out)

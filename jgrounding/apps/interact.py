@@ -105,7 +105,7 @@ def _loop(args, stdin, stdout, state) -> int:
     import jax
 
     from jgrounding.apps import own, plotting
-    from jgrounding.generators import sampling
+    from jgrounding.policy import sampling
     from jgrounding.semantics import HOLD_STILL, ground
 
     out = Path(args.out)

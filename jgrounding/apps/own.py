@@ -22,7 +22,7 @@ def checkpoint_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
     """The (intent, intensity) index pairs a checkpoint was trained on (None: every tuple)."""
     if checkpoint is None:
         return None
-    from jgrounding.generators import sampling
+    from jgrounding.policy import sampling
 
     return sampling.trained_tuples(checkpoint)
 

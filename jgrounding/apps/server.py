@@ -80,7 +80,7 @@ class Policy:
 
     def __init__(self, checkpoint: str | Path | None = None, allow_library_mismatch: bool = False, warm: bool = True):
         import jgrounding as jg
-        from jgrounding.generators import sampling
+        from jgrounding.policy import sampling
         from jgrounding.training import checkpoints
 
         self.checkpoint = None if checkpoint is None else str(checkpoint)
@@ -117,7 +117,7 @@ class Policy:
 
     @staticmethod
     def _few_step() -> list:
-        from jgrounding.generators import sampling
+        from jgrounding.policy import sampling
 
         manifest = json.loads(sampling.SHIPPED.read_text()) if sampling.SHIPPED.exists() else {}
         return [dict(e) for e in manifest.get("few_step", [])]

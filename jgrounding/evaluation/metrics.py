@@ -15,13 +15,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-TAU_RMS = 0.35
+from jgrounding.actuation import rms  # noqa: F401  (the one RMS distance, public here as Table II's metric)
+from jgrounding.config import TAU_RMS
+
 TAUS = (0.25, 0.30, 0.35, 0.40, 0.45)
-
-
-def rms(a, b) -> jax.Array:
-    """Normalized RMS distance over the last two axes ``(..., T, N_u)`` -> ``(...)``."""
-    return jnp.sqrt(jnp.mean((jnp.asarray(a) - jnp.asarray(b)) ** 2, axis=(-2, -1)))
 
 
 def success_rate(rms_values, tau: float = TAU_RMS) -> jax.Array:

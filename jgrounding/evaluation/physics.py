@@ -116,15 +116,6 @@ def library_references(lib, tau_rms: float, *, engine: str = "auto") -> tuple[np
     return backbone[len(lib.train) :], calibrate(u, backbone, intent, intensity, tau_rms)
 
 
-def margins(u: np.ndarray, *, engine: str = "auto") -> np.ndarray:
-    """Feasibility margin (:func:`jgrounding.sim.feasibility_margin`) of every trajectory ``u (B, T, 4)``,
-    rolled out in chunks of :data:`CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible."""
-    engine = sim.resolve_engine(engine)
-    return np.concatenate(
-        [sim.feasibility_margin(sim.rollout(u[i : i + CHUNK], engine=engine)) for i in range(0, len(u), CHUNK)]
-    )
-
-
 def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engine: str = "auto") -> dict:
     """Simulate every sample ``u (N, K, T, 4)`` and score it against ``reference (N, T, P, 3)``.
 

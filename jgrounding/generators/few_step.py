@@ -20,10 +20,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import nnx
 
-from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
-from jgrounding.generators.flows import INPAINT, condition_keep, sample_flow_time
+from jgrounding.config import SampleConfig, TrainConfig
+from jgrounding.generators.flows import INPAINT, condition_keep, guided, mlp_init, sample_flow_time
 from jgrounding.generators.networks import TwoTimeMLP
 
 MEANFLOW_JUMP_SHARE = 0.25  # share of examples with s != t (the paper's best; the rest is flow matching)
@@ -129,11 +128,7 @@ class _Jump:
     iterative = True
     samplers = ("euler",)  # one jump per step: x + dt * net(x, t, second)
 
-    def init(
-        self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig
-    ) -> nnx.Module:
-        dim = num_tendons * representation.length(num_controls)
-        return TwoTimeMLP(dim, use_intensity, config, rngs=nnx.Rngs(key))
+    init = staticmethod(lambda *args: mlp_init(TwoTimeMLP, *args))
 
     @staticmethod
     def _network(model, batch: dict, key, config: TrainConfig):
@@ -145,16 +140,7 @@ class _Jump:
         """S jumps from ``eps = N(key) (B, D)``; guidance w: net = net_c + w (net_c - net_null)."""
         b = cond.shape[0]
         eps = jax.random.normal(key, (b, dim))
-        ctx = model.context(cond, intensity)
-        w = config.guidance
-        if w:
-            both = jnp.concatenate([ctx, model.null_context(b)])
-
-            def net(x, time_ctx):
-                v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
-                return v[:b] + w * (v[:b] - v[b:])
-        else:
-            net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)
+        net = guided(model, model.context(cond, intensity), config.guidance)
         times = np.linspace(0.0, 1.0, config.steps + 1)
         return jump_sample(net, eps, times, self.second(config.steps), model.time_context, known)
 

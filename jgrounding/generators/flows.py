@@ -11,11 +11,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding.config import ModelConfig, SampleConfig, TrainConfig
+from jgrounding.config import DDPM_SAMPLERS, RF_SAMPLERS, ModelConfig, SampleConfig, TrainConfig
 from jgrounding.generators.networks import VelocityMLP
 
-SAMPLERS = ("euler", "midpoint", "rk4")
-DDPM_SAMPLERS = ("ancestral", "ddim")
 DDPM_STEPS = 50  # diffusion steps; the ancestral sampler uses all of them (Table I: S = 50)
 DATA_BOUND = 1.0  # targets are normalized to [-1, 1] (methods._encode); DDIM clips its x0 estimate to it
 
@@ -78,6 +76,30 @@ def _time_features(grid: np.ndarray, embed_time):
 INPAINT = ("final", "path")
 
 
+def mlp_init(
+    network, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig
+) -> nnx.Module:
+    """``Generator.init`` of a generator whose network is an MLP over the flat target (N_u x L values)."""
+    dim = num_tendons * representation.length(num_controls)
+    return network(dim, use_intensity, config, rngs=nnx.Rngs(key))
+
+
+def guided(model, ctx, w: float):
+    """``net(x, time_ctx)`` of a model with a precomputed condition context ``ctx (B, H)``; with classifier-free
+    guidance ``w`` > 0: net_c + w (net_c - net_null), the conditional and null rows through the network as one
+    batch (shared by the flows and the few-step generators)."""
+    if not w:
+        return lambda x, time_ctx: model.velocity(x, time_ctx, ctx)
+    b = ctx.shape[0]
+    both = jnp.concatenate([ctx, model.null_context(b)])
+
+    def net(x, time_ctx):
+        v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
+        return v[:b] + w * (v[:b] - v[b:])
+
+    return net
+
+
 def rf_sample(
     velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None, known=None, inpaint: str = "final"
 ):
@@ -96,8 +118,8 @@ def rf_sample(
     within r of a demonstration after the first key moment, "final" 0.98, and samples from rest 0.99
     (Prec@r of the benchmark, steps 50..149; ``python -m experiments.bench serve``, docs/serving.md).
     """
-    if sampler not in SAMPLERS:
-        raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(SAMPLERS)}")
+    if sampler not in RF_SAMPLERS:
+        raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(RF_SAMPLERS)}")
     if inpaint not in INPAINT:
         raise ValueError(f"unknown inpaint {inpaint!r}; valid: {', '.join(INPAINT)}")
     dt = 1.0 / steps
@@ -211,11 +233,7 @@ class _Flow:
     sequence = False
     iterative = True  # sampling steps S apply
 
-    def init(
-        self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig
-    ) -> nnx.Module:
-        dim = num_tendons * representation.length(num_controls)
-        return VelocityMLP(dim, use_intensity, config, rngs=nnx.Rngs(key))
+    init = staticmethod(lambda *args: mlp_init(VelocityMLP, *args))
 
     @staticmethod
     def _network(model, batch: dict, key, config: TrainConfig):
@@ -231,16 +249,7 @@ class _Flow:
         eps = jax.random.normal(key, (b, dim))
         # What does not change across flow steps is computed once, before the sampler's loop: the
         # condition's share of the first layer, and the time embedding's share for every step.
-        ctx = model.context(cond, intensity)
-        w = config.guidance
-        if w:
-            both = jnp.concatenate([ctx, model.null_context(b)])
-
-            def net(x, time_ctx):
-                v = model.velocity(jnp.concatenate([x, x]), time_ctx, both)
-                return v[:b] + w * (v[:b] - v[b:])
-        else:
-            net = lambda x, time_ctx: model.velocity(x, time_ctx, ctx)
+        net = guided(model, model.context(cond, intensity), config.guidance)
         if known is not None:
             return self._integrate(net, eps, key, config, model.time_context, known=known)
         return self._integrate(net, eps, key, config, model.time_context)
@@ -249,7 +258,7 @@ class _Flow:
 class RectifiedFlow(_Flow):
     """Sec. III-C: the paper's generator (Eqs. rf_loss, rf_inference)."""
 
-    samplers = SAMPLERS
+    samplers = RF_SAMPLERS
 
     def loss(self, model, batch, key, config: TrainConfig):
         key, net = self._network(model, batch, key, config)
@@ -272,7 +281,11 @@ class DDPM(_Flow):
 
     @staticmethod
     def _integrate(net, eps, key, config: SampleConfig, embed_time):
-        sampler = "ancestral" if config.sampler == "euler" else config.sampler  # the default of each generator
         return ddpm_sample(
-            net, eps, jax.random.fold_in(key, 1), sampler=sampler, sample_steps=config.steps, embed_time=embed_time
+            net,
+            eps,
+            jax.random.fold_in(key, 1),
+            sampler=config.sampler,
+            sample_steps=config.steps,
+            embed_time=embed_time,
         )

@@ -375,13 +375,13 @@ def _bracket_pools(lib) -> dict:
 
 def bracket_distances(lib) -> dict[str, list[np.ndarray]]:
     """Per held-out target, the RMS of every replay of each bracket (the tuple mean: one value)."""
-    from jgrounding.evaluation import metrics
+    from jgrounding.actuation import rms
 
-    d = np.asarray(metrics.rms(lib.train.u[None], lib.heldout.u[:, None]))  # (64, 192)
+    d = np.asarray(rms(lib.train.u[None], lib.heldout.u[:, None]))  # (64, 192)
     out = {name: [d[j, pool[j]] for j in range(len(d))] for name, pool in _bracket_pools(lib).items()}
     oracle = _bracket_pools(lib)["oracle"]
     means = np.stack([lib.train.u[oracle[j]].mean(0) for j in range(len(d))])
-    out["tuple_mean"] = [np.atleast_1d(x) for x in np.asarray(metrics.rms(means, lib.heldout.u))]
+    out["tuple_mean"] = [np.atleast_1d(x) for x in np.asarray(rms(means, lib.heldout.u))]
     return out
 
 

@@ -48,9 +48,9 @@ from pathlib import Path
 
 import numpy as np
 
+from jgrounding.config import NUM_STEPS  # noqa: E402  (T of Table I)
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe, intensity_index, intent_index
 
-NUM_STEPS = 150  # T of Table I
 MIN_ROWS = 10  # fewer recorded samples than this cannot be resampled to T = 150 meaningfully
 TIME_COLUMNS = ("time", "time_s", "t", "timestamp", "elapsed", "elapsed_s")  # seconds; matched in any case
 TIME_COLUMNS_MS = ("time_ms", "t_ms", "timestamp_ms", "elapsed_ms")  # milliseconds, converted

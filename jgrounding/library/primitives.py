@@ -36,10 +36,10 @@ import dataclasses
 import numpy as np
 
 from jgrounding.actuation import splines
+from jgrounding.config import NUM_STEPS  # noqa: E402  (T of Table I)
 from jgrounding.library.signatures import CODE as _CODE
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
-NUM_STEPS = 150
 REST = 0.0  # the rest command: every tendon slack (jgrounding.safety.REST)
 KEY_TIMES = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
 MIRROR = np.array([0, 3, 2, 1])  # left <-> right tendons

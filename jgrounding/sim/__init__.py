@@ -24,6 +24,8 @@ this function simulates what it is given; clamping belongs to :mod:`jgrounding.s
 
 from __future__ import annotations
 
+import numpy as np
+
 from jgrounding.sim.measures import (  # noqa: F401  (re-exported: the simulator's public surface)
     BASE_POSITION,
     CONTROL_DT,
@@ -82,3 +84,13 @@ def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
     # Padded chunks of the next power of two (at most MJX_CHUNK): a handful of compiled programs serve
     # every batch size.
     return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, 1 << (u.shape[0] - 1).bit_length()))
+
+
+def margins(u, *, engine: str = "auto") -> np.ndarray:
+    """Feasibility margin (:func:`feasibility_margin`) of every trajectory ``u (B, T, 4)``, rolled out in
+    chunks of :data:`MJX_CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible. What screening
+    (``jg.sample(..., screen=True)``, the physics-aware fine-tuning) keeps or rejects by."""
+    engine = resolve_engine(engine)
+    return np.concatenate(
+        [feasibility_margin(rollout(u[i : i + MJX_CHUNK], engine=engine)) for i in range(0, len(u), MJX_CHUNK)]
+    )

@@ -8,11 +8,12 @@ import dataclasses
 
 import numpy as np
 
+from jgrounding import config
 from jgrounding.sim import model as tm
 
 NUM_SEGMENTS = tm.NUM_SEGMENTS
-NUM_STEPS = 150
-NUM_CHANNELS = 4
+NUM_STEPS = config.NUM_STEPS  # T of Table I
+NUM_CHANNELS = config.NUM_TENDONS  # N_u of the built-in trunk
 TIMESTEP = tm.TIMESTEP
 SUBSTEPS = 4
 CONTROL_DT = TIMESTEP * SUBSTEPS  # 1/30 s

@@ -16,6 +16,8 @@ whose arrays do not match their digest or have the wrong shapes, or whose parame
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -26,7 +28,15 @@ import jax
 import numpy as np
 import orbax.checkpoint as ocp
 
-from jgrounding.vocabulary import INTENSITIES, INTENTS
+from jgrounding import io
+from jgrounding.config import SampleConfig, model_config
+from jgrounding.generators import methods
+from jgrounding.generators.trained import Trained
+from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
+
+# = jgrounding.library.DEFAULT_PATH, named here so that loading a checkpoint does not import the library
+# package (and the physics it screens with): jg.sample's first call stays short.
+DEFAULT_LIBRARY = Path(__file__).resolve().parents[2] / "assets" / "library.npz"
 
 FORMAT_VERSION = 1
 
@@ -109,11 +119,20 @@ def _digest(arrays) -> str:
 
 
 def read_meta(directory: str | Path) -> dict:
+    """The parsed ``meta.json`` of a checkpoint (a fresh dict). The file is read once per version: the text is
+    cached by its path, size and modification time, so loading a model does not read it again."""
     path = Path(directory) / "meta.json"
     try:
-        return json.loads(path.read_text())
+        st = path.stat()
+        return json.loads(_meta_text(str(path.resolve()), st.st_mtime_ns, st.st_size))
     except (OSError, ValueError) as e:
         raise ValueError(f"checkpoint metadata {path} is missing or unreadable: {e}")
+
+
+@functools.lru_cache(maxsize=64)
+def _meta_text(path: str, mtime_ns: int, size: int) -> str:
+    del mtime_ns, size  # cache keys: a rewritten file is read again
+    return Path(path).read_text()
 
 
 def restore(directory: str | Path, target, expect: dict | None = None):
@@ -150,7 +169,7 @@ def restore(directory: str | Path, target, expect: dict | None = None):
         )
     if len(flat) != len(flat_t):
         raise ValueError(f"checkpoint {directory} holds {len(flat)} arrays, expected {len(flat_t)}")
-    # a target leaf is an array or a jax.ShapeDtypeStruct (methods.abstract)
+    # a target leaf is an array or a jax.ShapeDtypeStruct (methods.init(..., abstract=True))
     flat_t = [b if hasattr(b, "shape") and hasattr(b, "dtype") else np.asarray(b) for b in flat_t]
     for a, b in zip(flat, flat_t):
         if np.shape(a) != tuple(b.shape):
@@ -165,3 +184,109 @@ def restore(directory: str | Path, target, expect: dict | None = None):
     ):
         raise ValueError(f"checkpoint {directory} contains NaN or Inf parameters; refusing to load it")
     return tree, meta
+
+
+# --- Trained models: what a checkpoint records of one, and the one restore with the one library rule --------
+
+
+def meta_of(trained: Trained) -> dict:
+    """What every checkpoint of a :class:`Trained` records so that :func:`restore_trained` rebuilds it: method,
+    seeds, sizes, its sampling defaults and the library it was trained on (version, and the file's sha256
+    when the model knows the file)."""
+    meta = {
+        "method": trained.method,
+        "seeds": list(trained.seeds),
+        "num_controls": trained.num_controls,
+        "num_tendons": trained.num_tendons,
+        "model": dataclasses.asdict(trained.model),
+        "sample": dataclasses.asdict(trained.sample_config),
+    }
+    lib = trained.library or {}
+    if lib.get("version"):
+        meta["library_version"] = lib["version"]
+    if lib.get("path") and Path(lib["path"]).is_file():
+        meta["library_sha256"] = io.sha256_file(lib["path"])
+    return meta
+
+
+def library_mismatch(path, meta: dict) -> str | None:
+    """Why checkpoint ``path`` (its ``meta``) does not belong to the library it would be used with, or ``None``.
+
+    The one rule: the library is the file the checkpoint recorded (``library_path``, when that file exists) or
+    else the shipped ``assets/library.npz``; its sha256 must be the one recorded. A checkpoint that recorded
+    no library sha256 is not judged. :func:`restore_trained` refuses a mismatch unless
+    ``allow_library_mismatch``."""
+    digest = meta.get("library_sha256")
+    lib_path = Path(meta.get("library_path") or DEFAULT_LIBRARY)
+    if not digest or not lib_path.is_file():
+        return None
+    now = io.sha256_file(lib_path)
+    if now == digest:
+        return None
+    try:
+        current = json.loads(lib_path.with_suffix(".json").read_text()).get("library_version", "1 (unversioned)")
+    except (OSError, ValueError):
+        current = "unknown"
+    retrain = f"--library {lib_path} " if meta.get("library_path") else ""
+    return (
+        f"checkpoint {path} was trained on library version {meta.get('library_version', '1 (unversioned)')} "
+        f"(sha256 {digest[:12]}...), but {lib_path} is library version {current} (sha256 {now[:12]}...); "
+        f"retrain it (python -m experiments.train {retrain}--out {path}) or pass allow_library_mismatch=True "
+        "(--allow-library-mismatch) to use it anyway"
+    )
+
+
+def trained_tuples(meta: dict) -> tuple[tuple[int, int], ...] | None:
+    """The (intent, intensity) tuples a checkpoint's library holds (``None``: all 64, or not recorded)."""
+    tuples = meta.get("tuples")
+    if not tuples:
+        return None
+    return tuple((intent_index(t.split("/")[0]), intensity_index(t.split("/")[1])) for t in tuples)
+
+
+def restore_trained(path, method: str | None = None, *, allow_library_mismatch: bool = False) -> Trained:
+    """A :class:`Trained` (every seed it holds, its sampling defaults and library identity) from a checkpoint
+    directory written by the ablation, ``experiments.train`` or ``experiments.ship``; ``method`` (optional)
+    must match. ``ValueError`` naming the directory for an unknown method, P, N_u or model sizes, a checkpoint
+    trained on another library (:func:`library_mismatch`; unless ``allow_library_mismatch``), and whatever
+    :func:`restore` refuses (vocabulary, shapes, NaN, digest). Checkpoints written before model sizes were
+    recorded load with Table I's sizes (what they were trained with); one whose arrays do not fit them is
+    refused by its shapes. ``meta.json`` is read once (:func:`read_meta`)."""
+    meta = read_meta(path)
+    why = None if allow_library_mismatch else library_mismatch(path, meta)
+    if why:
+        raise ValueError(why)
+    name, num_controls, seeds = meta.get("method"), meta.get("num_controls", 4), meta.get("seeds", [0])
+    num_tendons = meta.get("num_tendons", 4)
+    if name not in methods.REGISTRY:
+        raise ValueError(f"checkpoint {path} names unknown method {name!r}; valid: {', '.join(methods.ALL_METHODS)}")
+    if method is not None and name != method:
+        raise ValueError(f"checkpoint {path}: method is {name!r}, expected {method!r}")
+    if isinstance(num_controls, bool) or not isinstance(num_controls, int) or not 2 <= num_controls <= 64:
+        raise ValueError(f"checkpoint {path} has num_controls {num_controls!r}, expected an integer in 2..64")
+    if isinstance(num_tendons, bool) or not isinstance(num_tendons, int) or not 1 <= num_tendons <= 64:
+        raise ValueError(f"checkpoint {path} has num_tendons {num_tendons!r}, expected an integer in 1..64")
+    try:
+        model = model_config(meta)
+        sample = SampleConfig(**meta.get("sample", {}))
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"checkpoint {path}: {e}") from None
+    graphdef, params = methods.init(name, tuple(seeds), num_controls, num_tendons, model, abstract=True)
+    params, _ = restore(path, params)
+    library = {
+        "version": meta.get("library_version", "1 (unversioned)"),
+        "sha256": meta.get("library_sha256"),
+        "path": meta.get("library_path"),
+        "tuples": trained_tuples(meta),
+    }
+    return Trained(
+        name,
+        graphdef,
+        params,
+        tuple(int(x) for x in seeds),
+        num_controls,
+        num_tendons=num_tendons,
+        model=model,
+        sample_config=sample,
+        library=library,
+    )

@@ -4,7 +4,7 @@ The simulator shapes the generator. Starting from a trained Tuple + Spline + RF 
 round
 
 1. draws ``candidates`` samples for each of the 64 (intent, intensity) tuples from the current model;
-2. rolls them all out in one batch (:func:`jgrounding.evaluation.physics.margins`, ``engine="auto"``) and keeps the
+2. rolls them all out in one batch (:func:`jgrounding.sim.margins`, ``engine="auto"``) and keeps the
    ones whose feasibility margin (:func:`jgrounding.sim.feasibility_margin`) is at least
    ``margin``: a buffer inside the bound, so the model learns to stay away from it, not to graze it;
 3. fine-tunes the model with the rectified-flow loss (Eq. rf_loss) on the kept samples' controls
@@ -25,24 +25,29 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jgrounding import training
+from jgrounding import sim, training
 from jgrounding.actuation import splines
-from jgrounding.evaluation import physics as phys_eval
+from jgrounding.config import NUM_STEPS, PhysicsConfig, SampleConfig
 from jgrounding.generators import flows, methods
+from jgrounding.generators.trained import Trained
 from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
 
 METHOD = "tuple_spline_rf"
 
 
-@dataclasses.dataclass(frozen=True)
-class PhysicsConfig:
-    rounds: int = 2  # generate -> simulate -> fine-tune rounds
-    candidates: int = 16  # samples per tuple per round (64 tuples: 1024 rollouts per seed and round)
-    steps: int = 1000  # fine-tuning steps per round (Table I optimizer, batch 8)
-    margin: float = 0.2  # keep candidates with feasibility margin >= this (0 = just feasible)
-    learning_rate: float = 3e-4  # below Table I's 1e-3: fine-tuning, not training (1e-3 drifted: RMS up)
-    euler_steps: int = 50  # S of the sampler that draws the candidates
-    engine: str = "auto"  # jgrounding.sim.rollout engine
+def _candidate_sampler(trained: Trained, cond, inten, c: int, sample: SampleConfig):
+    """``(params[S], key) -> u (S, 64, c, T, N_u)``: ``c`` gated samples of every tuple from every seed, compiled
+    once for all rounds (vmap over seeds of :meth:`Trained.sample`)."""
+    cond_k = jnp.repeat(jnp.asarray(cond, jnp.float32), c, axis=0)
+    inten_k = jnp.repeat(jnp.asarray(inten, jnp.int32), c)
+
+    @jax.jit
+    def draw(params, key):
+        keys = jax.random.split(key, len(trained.seeds))
+        u = jax.vmap(lambda p, k: trained.sample(k, cond_k, inten_k, sample, params=p))(params, keys)
+        return u.reshape(len(trained.seeds), len(cond), c, NUM_STEPS, trained.num_tendons)
+
+    return draw
 
 
 def _tuples(intent_emb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,12 +97,13 @@ def _make_finetune(graphdef, cond, intensity, config: training.TrainConfig):
 
 
 def finetune(
-    teacher: methods.Trained,
+    teacher: Trained,
     library,
     key,
     *,
     intent_emb,
     physics: PhysicsConfig = PhysicsConfig(),
+    sample: SampleConfig = SampleConfig(),
     config: training.TrainConfig = training.TrainConfig(),
 ):
     """Physics-aware fine-tuning of every seed of a trained ``tuple_spline_rf`` (all seeds at once).
@@ -107,9 +113,10 @@ def finetune(
       library: its ``train`` split is mixed into every round's data.
       key: randomness of candidate generation and fine-tuning.
       intent_emb: ``(16, 384)`` intent embeddings (the tuple condition).
+      sample: the sampler that draws the candidates (Table I: S = 50 Euler steps).
       config: the optimizer (batch size, weight decay); steps and learning rate come from ``physics``.
     Returns:
-      ``(trained, report)``: a :class:`jgrounding.generators.methods.Trained` of the same method and seeds, and per
+      ``(trained, report)``: a :class:`jgrounding.generators.trained.Trained` of the same method and seeds, and per
       round the candidates simulated, the fraction kept, the fraction feasible and the rollout seconds.
     """
     if teacher.method != METHOD:
@@ -126,13 +133,13 @@ def finetune(
     run = _make_finetune(teacher.graphdef, all_cond, all_inten, config)
     rng = np.random.default_rng(int(jax.random.randint(key, (), 0, 2**31 - 1)))
     params, report = teacher.params, []
+    draw = _candidate_sampler(teacher, cond, inten, c, sample)
     for rnd in range(physics.rounds):
         k_gen, k_train = jax.random.split(jax.random.fold_in(key, rnd))
-        current = dataclasses.replace(teacher, params=params)
-        u = methods.generate(current, cond, inten, k_gen, num_samples=c, steps=physics.euler_steps)  # (S, 64, C, T, 4)
+        u = np.asarray(draw(params, k_gen))  # (S, 64, C, T, 4)
         flat = u.reshape(-1, *u.shape[-2:])
         t0 = time.perf_counter()
-        margin = phys_eval.margins(flat, engine=physics.engine).reshape(u.shape[:3])
+        margin = sim.margins(flat, engine=physics.engine).reshape(u.shape[:3])
         seconds = time.perf_counter() - t0
         keep = margin >= physics.margin
         report.append(
@@ -153,6 +160,6 @@ def finetune(
         )
         keys = jax.random.split(k_train, len(teacher.seeds))
         states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
-        states, _ = run(states, 2.0 * jnp.asarray(targets) - 1.0)  # controls in [-1, 1], as the methods train
+        states, _ = run(states, methods.encode(jnp.asarray(targets)))  # controls in [-1, 1], as the methods train
         params = training.eval_params(states)
     return dataclasses.replace(teacher, params=params, losses=None), report

@@ -14,16 +14,17 @@ def test_one_fold_of_the_cross_validation_runs_end_to_end(tmp_path, monkeypatch,
     # The tiniest configuration that still trains, samples, simulates and pools: 1 seed, 5 steps, 2 samples of 4
     # Euler steps. The fold's library drops its evaluation set, which skips the distribution rows (their fresh
     # realizations are screened in simulation, about a minute); those run in test_quick_ablation_end_to_end.
-    monkeypatch.setitem(ablation.QUICK, "k_div", 2)
-    monkeypatch.setitem(ablation.QUICK, "euler_steps", 4)
     fold = ablation.library.fold
     monkeypatch.setattr(ablation.library, "fold", lambda lib, k: dataclasses.replace(fold(lib, k), evaluation=None))
     out = tmp_path / "folds"
     argv = ["--folds", "4", "--only-fold", "1", "--quick", "--methods", "tuple_spline_rf", "--no-physics-aware"]
-    assert ablation.main([*argv, "--seeds", "0", "--steps", "5", "--out", str(out)]) == 0
+    tiny = ["--set", "eval.num_samples=2", "--set", "sample.steps=4"]
+    assert ablation.main([*argv, *tiny, "--seeds", "0", "--steps", "5", "--out", str(out)]) == 0
     res = json.loads((out / "ablation_folds.json").read_text())
     assert res["folds"] == 4 and res["only_fold"] == 1
-    assert res["config"]["methods"] == ["tuple_spline_rf"] and res["config"]["runs"] == str(out / "runs")
+    cfg = res["config"]
+    assert cfg["eval"]["rows"] == ["tuple_spline_rf"] and cfg["eval"]["runs"] == str(out / "runs")
+    assert cfg["eval"]["num_samples"] == 2 and cfg["sample"]["steps"] == 4 and cfg["train"]["steps"] == 5
     row = res["rows"]["tuple_spline_rf"]
     assert len(row["per_fold"]) == 1 and 0.0 <= row["success"][0] <= 1.0
     assert (out / "runs" / "fold1" / "tuple_spline_rf").is_dir()  # the fold's checkpoint, apart from other folds

@@ -3,14 +3,19 @@
 import jax
 import numpy as np
 
+from jgrounding.config import SampleConfig
 from jgrounding.evaluation import latency
-from jgrounding.generators import methods, sampling
+from jgrounding.generators import methods
+from jgrounding.generators.trained import Trained
+from jgrounding.policy import sampling
 
 
 def test_latency_goes_through_the_public_sampler_once_per_setting():
     trained, emb = sampling.load()
     before = sum(sampling.TRACES.values())
-    ms = latency.latency_ms(trained, np.arange(16), np.arange(16) % 4, jax.random.key(0), steps=2, reps=20)
+    ms = latency.latency_ms(
+        trained, np.arange(16), np.arange(16) % 4, jax.random.key(0), SampleConfig(steps=2), reps=20
+    )
     assert np.isfinite(ms) and ms > 0
     assert latency.measures(trained) == latency.PUBLIC
     assert sum(sampling.TRACES.values()) == before + 1  # 21 public calls, one trace
@@ -18,7 +23,7 @@ def test_latency_goes_through_the_public_sampler_once_per_setting():
 
 def test_raw_conditioning_is_timed_through_the_core_and_says_so():
     graphdef, params = methods.init("raw_dense_cnn", (0,), 4)
-    trained = methods.Trained("raw_dense_cnn", graphdef, params, (0,), 4)
+    trained = Trained("raw_dense_cnn", graphdef, params, (0,), 4)
     assert latency.measures(trained) == latency.CORE
     cond = np.random.default_rng(0).normal(size=(5, 384)).astype(np.float32)
     assert latency.latency_ms(trained, None, np.arange(5) % 4, jax.random.key(0), cond=cond, reps=3) > 0

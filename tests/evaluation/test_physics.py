@@ -44,4 +44,4 @@ def test_every_sample_simulated_and_identical_copies_once():
     assert res["shape_rms"].shape == (2, 3) and np.all(res["shape_rms"][0] < 1e-9)
     assert res["shape_success"][0].all() and not res["shape_success"][1].any()
     assert res["diversity"][0] < 1e-6 and res["diversity"][1] > 0 and res["feasible"].all()
-    np.testing.assert_allclose(physics.margins(u.reshape(-1, 150, 4)), res["margin"].reshape(-1))
+    np.testing.assert_allclose(sim.margins(u.reshape(-1, 150, 4)), res["margin"].reshape(-1))

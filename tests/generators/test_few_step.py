@@ -9,7 +9,9 @@ import jgrounding as jg
 from experiments import train as train_cli
 from jgrounding import training
 from jgrounding.config import ModelConfig, SampleConfig
-from jgrounding.generators import few_step, methods, sampling
+from jgrounding.generators import few_step, methods
+from jgrounding.policy import sampling
+from jgrounding.training import trainer
 
 FEW_STEP = ("tuple_spline_meanflow", "tuple_spline_shortcut")
 
@@ -64,7 +66,7 @@ def test_training_lowers_the_loss_on_a_tiny_problem(method):
     }
     graphdef, params = methods.init(method, (0,))
     config = training.TrainConfig(steps=800, chunk=800)
-    step = training.make_step(methods.loss_fn(method, graphdef, data, config), 2, config)
+    step = training.make_step(trainer.loss_fn(method, graphdef, data, config), 2, config)
     state = jax.vmap(lambda p: training.init_state(p, k_init, config))(params)
     _, losses = training.train(state, step, config, progress=False)
     losses = np.asarray(losses[0])

@@ -11,8 +11,10 @@ from flax import nnx
 import jgrounding as jg
 from jgrounding import semantics, training
 from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate
 from jgrounding.generators import flows, methods
 from jgrounding.generators.networks import VelocityMLP
+from jgrounding.training import trainer
 
 
 @pytest.mark.parametrize(
@@ -76,7 +78,7 @@ def test_condition_dropout_zeroes_the_condition():
 def tiny():
     lib = jg.load_library()
     cfg = training.TrainConfig(steps=20, chunk=10, condition_dropout=0.2)
-    return lib, methods.train(
+    return lib, trainer.fit(
         "tuple_spline_rf", lib, (0, 1), cfg, intent_emb=semantics.intent_embeddings(), progress=False
     )
 
@@ -98,24 +100,40 @@ def test_guidance_extrapolates_from_the_null_condition(tiny):
 def test_guidance_zero_is_the_conditional_sampler(tiny):
     lib, tr = tiny
     cond = semantics.intent_embeddings()[lib.heldout.intent[:4]]
-    a = methods.generate(tr, cond, lib.heldout.intensity[:4], jax.random.key(5), num_samples=2, steps=4)
-    b = methods.generate(tr, cond, lib.heldout.intensity[:4], jax.random.key(5), num_samples=2, steps=4, guidance=0.0)
-    c = methods.generate(tr, cond, lib.heldout.intensity[:4], jax.random.key(5), num_samples=2, steps=4, guidance=1.0)
+    a = generate.generate(
+        tr, cond, lib.heldout.intensity[:4], jax.random.key(5), num_samples=2, config=SampleConfig(steps=4)
+    )
+    b = generate.generate(
+        tr,
+        cond,
+        lib.heldout.intensity[:4],
+        jax.random.key(5),
+        num_samples=2,
+        config=SampleConfig(steps=4, guidance=0.0),
+    )
+    c = generate.generate(
+        tr,
+        cond,
+        lib.heldout.intensity[:4],
+        jax.random.key(5),
+        num_samples=2,
+        config=SampleConfig(steps=4, guidance=1.0),
+    )
     assert np.array_equal(a, b) and not np.allclose(a, c)
 
 
 def test_options_that_do_not_apply_are_refused():
     lib = jg.load_library()
     with pytest.raises(ValueError, match="deterministic regressor"):
-        methods.train("tuple_spline_cnn", lib, (0,), training.TrainConfig(steps=1, condition_dropout=0.1))
+        trainer.fit("tuple_spline_cnn", lib, (0,), training.TrainConfig(steps=1, condition_dropout=0.1))
     with pytest.raises(ValueError, match="rectified flow"):
-        methods.train("tuple_spline_ddpm", lib, (0,), training.TrainConfig(steps=1, time_sampler="beta"))
+        trainer.fit("tuple_spline_ddpm", lib, (0,), training.TrainConfig(steps=1, time_sampler="beta"))
 
 
 @pytest.mark.slow
 def test_reflow_keeps_seeds_shapes_and_starts_from_the_teacher(tiny):
     lib, tr = tiny
-    rf = methods.reflow(
+    rf = trainer.reflow(
         tr,
         lib,
         training.TrainConfig(steps=10, chunk=10, learning_rate=0.0, weight_decay=0.0),

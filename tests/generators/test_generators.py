@@ -13,7 +13,7 @@ from jgrounding import safety, training
 from jgrounding.config import ModelConfig
 from jgrounding.generators import flows, methods
 from jgrounding.generators.networks import CNNRegressor, VelocityMLP
-from jgrounding.training import checkpoints
+from jgrounding.training import checkpoints, trainer
 
 MODES = jnp.array([[-0.8, 0.8], [0.8, -0.8]])  # two modes for the same condition
 
@@ -69,7 +69,7 @@ def test_cnn_regressor_collapses_to_the_mean():
     assert np.linalg.norm(x.mean(0)) < 0.2  # ... the average of the two modes
 
 
-@pytest.mark.parametrize("sampler", flows.SAMPLERS)
+@pytest.mark.parametrize("sampler", flows.RF_SAMPLERS)
 def test_rf_samplers_integrate_a_known_field(sampler):
     # v(x, t) = target - eps along the straight line: exact for any step count
     target = jnp.ones((4, 3))
@@ -82,7 +82,7 @@ def test_resumed_training_equals_uninterrupted(tmp_path):
     lib = jg.load_library()
     cfg = training.TrainConfig(steps=60, chunk=20)
     emb = np.random.default_rng(0).normal(size=(16, 384)).astype(np.float32)
-    full = methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False)
+    full = trainer.fit("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False)
 
     saved = {}
 
@@ -94,10 +94,10 @@ def test_resumed_training_equals_uninterrupted(tmp_path):
             raise KeyboardInterrupt  # simulated kill at a chunk boundary
 
     with pytest.raises(KeyboardInterrupt):
-        methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False, on_chunk=stop_after_first)
+        trainer.fit("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False, on_chunk=stop_after_first)
     tree, meta = checkpoints.restore(tmp_path / "run", saved["template"], expect={"method": "tuple_spline_rf"})
     states = dataclasses.replace(tree, key=jax.random.wrap_key_data(jnp.asarray(tree.key)))
-    resumed = methods.train("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False, initial_states=states)
+    resumed = trainer.fit("tuple_spline_rf", lib, (0, 1), cfg, intent_emb=emb, progress=False, initial_states=states)
     for a, b in zip(jax.tree.leaves(full.params), jax.tree.leaves(resumed.params)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 

@@ -11,7 +11,9 @@ import pytest
 import jgrounding as jg
 from jgrounding import safety
 from jgrounding.actuation import splines
-from jgrounding.generators import flows, methods, sampling
+from jgrounding.config import SampleConfig
+from jgrounding.generators import flows, methods
+from jgrounding.policy import sampling
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +32,7 @@ def test_rf_sample_inpaints_known_coordinates_exactly():
         seen.append(t)
         return jnp.ones_like(x) * 3.0
 
-    for sampler in flows.SAMPLERS:
+    for sampler in flows.RF_SAMPLERS:
         out = flows.rf_sample(velocity, eps, steps=5, sampler=sampler, known=(mask, target))
         np.testing.assert_allclose(np.asarray(out)[:, ::4], np.asarray(target)[:, ::4], atol=1e-6)
         free = np.asarray(out)[:, 1::4]  # the others follow the field: eps + 3 over lambda in [0, 1]
@@ -41,20 +43,9 @@ def test_rf_sample_inpaints_known_coordinates_exactly():
 
 def test_ungated_actuation_is_a_spline_through_the_start(mid_motion):
     trained, emb = sampling.load()
-    params = jax.tree.map(lambda x: x[0], trained.params)
     start = np.stack([mid_motion, np.zeros(4, np.float32), np.full(4, 0.9, np.float32)])
-    u = methods.actuation(
-        trained.method,
-        trained.graphdef,
-        params,
-        jnp.asarray(emb[[0, 2, 5]]),
-        jnp.array([1, 0, 3], jnp.int32),
-        jax.random.key(3),
-        steps=10,
-        num_controls=trained.num_controls,
-        num_tendons=trained.num_tendons,
-        start=jnp.asarray(start),
-    )
+    cond, z = jnp.asarray(emb[[0, 2, 5]]), jnp.array([1, 0, 3], jnp.int32)
+    u = trained.actuation(jax.random.key(3), cond, z, SampleConfig(steps=10), start=jnp.asarray(start))
     u = np.asarray(u)
     np.testing.assert_allclose(u[:, 0], start, atol=1e-5)  # R(c; 0) = c[:, 0]: generated from there
     refit = np.asarray(splines.reconstruct(splines.fit(jnp.asarray(u), num_controls=trained.num_controls)))

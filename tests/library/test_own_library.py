@@ -7,9 +7,10 @@ from test_importer import write_folder
 
 import jgrounding as jg
 from jgrounding import library
-from jgrounding.generators import methods, sampling
+from jgrounding.evaluation import generate
 from jgrounding.library import importer
-from jgrounding.training import TrainConfig
+from jgrounding.policy import sampling
+from jgrounding.training import TrainConfig, trainer
 
 
 @pytest.fixture(scope="module")
@@ -39,9 +40,9 @@ def three_tendon_library(tmp_path_factory):
 @pytest.mark.parametrize("method", ["tuple_spline_cnn", "tuple_dense_cnn", "tuple_spline_rf"])
 def test_three_tendons_train_and_generate(three_tendon_library, method):
     lib = jg.load_library(three_tendon_library)
-    trained = methods.train(method, lib, seeds=(0,), config=TrainConfig(steps=5, chunk=5), progress=False)
+    trained = trainer.fit(method, lib, seeds=(0,), config=TrainConfig(steps=5, chunk=5), progress=False)
     assert trained.num_tendons == 3
-    u = methods.generate(trained, np.zeros((2, 384), np.float32), np.array([1, 3]), jax.random.key(0), num_samples=2)
+    u = generate.generate(trained, np.zeros((2, 384), np.float32), np.array([1, 3]), jax.random.key(0), num_samples=2)
     assert u.shape == (1, 2, 2, 150, 3) and 0.0 <= u.min() and u.max() <= 1.0
 
 

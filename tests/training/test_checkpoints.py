@@ -17,7 +17,8 @@ import pytest
 
 import jgrounding as jg
 from jgrounding import safety
-from jgrounding.generators import methods, sampling
+from jgrounding.generators import methods
+from jgrounding.policy import sampling
 from jgrounding.training import checkpoints
 
 
@@ -154,10 +155,10 @@ def test_a_checkpoint_of_another_library_version_is_refused_unless_allowed(tmp_p
     params, meta = shipped
     path = _write(tmp_path / "old", params, {**meta, "library_sha256": "0" * 64, "library_version": "1"})
     with pytest.raises(ValueError, match="(?s)library version 1.*library version .*allow_library_mismatch"):
-        methods.restore(path)
-    assert methods.restore(path, allow_library_mismatch=True).method == meta["method"]
+        checkpoints.restore_trained(path)
+    assert checkpoints.restore_trained(path, allow_library_mismatch=True).method == meta["method"]
 
 
 def test_the_shipped_checkpoint_matches_the_shipped_library():
     meta = checkpoints.read_meta(sampling.DEFAULT_CHECKPOINT)
-    assert methods.library_mismatch(sampling.DEFAULT_CHECKPOINT, meta) is None
+    assert checkpoints.library_mismatch(sampling.DEFAULT_CHECKPOINT, meta) is None

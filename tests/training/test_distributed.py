@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jgrounding.training import distributed
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate
+from jgrounding.training import distributed, trainer
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -22,8 +24,9 @@ import json
 import jax, jax.numpy as jnp, numpy as np
 import jgrounding as jg
 from jgrounding import semantics, training
-from jgrounding.training import distributed
-from jgrounding.generators import methods
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate
+from jgrounding.training import distributed, trainer
 
 out = {"device_count": jax.device_count(), "initialized": distributed.initialize()}
 mesh = distributed.make_mesh()
@@ -41,8 +44,8 @@ lib = jg.load_library()
 emb = semantics.intent_embeddings()
 cfg = training.TrainConfig(steps=200, chunk=100)
 seen = []
-single = methods.train("tuple_spline_rf", lib, (0, 1, 2, 3, 4), cfg, intent_emb=emb, progress=False)
-sharded = methods.train("tuple_spline_rf", lib, (0, 1, 2, 3, 4), cfg, intent_emb=emb, progress=False, mesh=mesh,
+single = trainer.fit("tuple_spline_rf", lib, (0, 1, 2, 3, 4), cfg, intent_emb=emb, progress=False)
+sharded = trainer.fit("tuple_spline_rf", lib, (0, 1, 2, 3, 4), cfg, intent_emb=emb, progress=False, mesh=mesh,
                         on_chunk=lambda s, done: seen.append((done, int(np.shape(s.step)[0]))))
 pairs = list(zip(jax.tree.leaves(single.params), jax.tree.leaves(sharded.params)))
 out["param_shapes_equal"] = all(np.shape(a) == np.shape(b) for a, b in pairs)
@@ -54,14 +57,14 @@ out["on_chunk"] = seen
 # Evaluation: 13 held-out tuples x 3 samples = 39 trajectories in batches of 12 (the last one padded);
 # a batch of 10 is rounded up to 12 on 4 devices, so it draws the same noise as a batch of 12.
 cond, z = emb[lib.heldout.intent[:13]], lib.heldout.intensity[:13]
-u1 = methods.generate(sharded, cond, z, jax.random.key(7), num_samples=3, batch=12)
-u4 = methods.generate(sharded, cond, z, jax.random.key(7), num_samples=3, batch=12, mesh=mesh)
-u4r = methods.generate(sharded, cond, z, jax.random.key(7), num_samples=3, batch=10, mesh=mesh)
+u1 = generate.generate(sharded, cond, z, jax.random.key(7), num_samples=3, batch=12)
+u4 = generate.generate(sharded, cond, z, jax.random.key(7), num_samples=3, batch=12, mesh=mesh)
+u4r = generate.generate(sharded, cond, z, jax.random.key(7), num_samples=3, batch=10, mesh=mesh)
 out["gen_shape"] = list(u4.shape)
 out["gen_max_diff"] = float(np.abs(u1 - u4).max())
 out["gen_rounded_max_diff"] = float(np.abs(u1 - u4r).max())
 out["gen_safe"] = bool(jg.safety.is_safe(u4))
-fn = methods.generate_fn(sharded.method, sharded.graphdef, "euler", 50, 4, mesh)
+fn = generate.generate_fn(sharded, sharded.resolve(SampleConfig()), mesh)
 y = fn(distributed.replicate(sharded.params, mesh), *distributed.shard((jnp.asarray(cond[:12]), jnp.asarray(z[:12])), mesh),
        distributed.replicate(jax.random.split(jax.random.key(0), 5), mesh))
 out["gen_shard_shape"] = list(y.addressable_shards[0].data.shape)
@@ -76,15 +79,16 @@ import json, sys
 import jax, numpy as np
 import jgrounding as jg
 from jgrounding import training
-from jgrounding.training import distributed
-from jgrounding.generators import methods
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate
+from jgrounding.training import distributed, trainer
 
 assert distributed.initialize()  # from JAX_COORDINATOR_ADDRESS / JAX_NUM_PROCESSES / JAX_PROCESS_ID
 mesh = distributed.make_mesh()
 emb = np.random.default_rng(0).normal(size=(16, 384)).astype(np.float32)
-tr = methods.train("tuple_spline_rf", jg.load_library(), (0, 1, 2), training.TrainConfig(steps=20, chunk=10),
+tr = trainer.fit("tuple_spline_rf", jg.load_library(), (0, 1, 2), training.TrainConfig(steps=20, chunk=10),
                    intent_emb=emb, progress=False, mesh=mesh)
-u = methods.generate(tr, emb[:6], np.arange(6) % 4, jax.random.key(1), num_samples=4, batch=8, steps=4, mesh=mesh)
+u = generate.generate(tr, emb[:6], np.arange(6) % 4, jax.random.key(1), num_samples=4, batch=8, mesh=mesh, config=SampleConfig(steps=4))
 np.savez(sys.argv[1], u=u, **{f"p{i}": np.asarray(x) for i, x in enumerate(jax.tree.leaves(tr.params))})
 print("RESULT " + json.dumps({"process": jax.process_index(), "processes": jax.process_count(),
                               "devices": jax.device_count(), "local_devices": jax.local_device_count()}))
@@ -197,7 +201,6 @@ def test_multi_host_job_equals_one_process(tmp_path):
 
     import jgrounding as jg
     from jgrounding import training
-    from jgrounding.generators import methods
 
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -228,7 +231,7 @@ def test_multi_host_job_equals_one_process(tmp_path):
     assert all(r["processes"] == 2 and r["devices"] == 4 and r["local_devices"] == 2 for r in results)
 
     emb = np.random.default_rng(0).normal(size=(16, 384)).astype(np.float32)
-    tr = methods.train(
+    tr = trainer.fit(
         "tuple_spline_rf",
         jg.load_library(),
         (0, 1, 2),
@@ -236,7 +239,9 @@ def test_multi_host_job_equals_one_process(tmp_path):
         intent_emb=emb,
         progress=False,
     )
-    u = methods.generate(tr, emb[:6], np.arange(6) % 4, jax.random.key(1), num_samples=4, batch=8, steps=4)
+    u = generate.generate(
+        tr, emb[:6], np.arange(6) % 4, jax.random.key(1), num_samples=4, batch=8, config=SampleConfig(steps=4)
+    )
     params = [np.asarray(x) for x in jax.tree.leaves(tr.params)]
     for pid in range(2):
         got = np.load(tmp_path / f"p{pid}.npz")

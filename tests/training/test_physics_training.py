@@ -4,7 +4,9 @@ import jax
 import numpy as np
 import pytest
 
+from jgrounding.generators.trained import Trained
 from jgrounding.training import physics as pt
+from jgrounding.training import trainer
 
 
 def test_refill_keeps_tuples_balanced_and_drops_every_rejected_candidate():
@@ -19,11 +21,10 @@ def test_refill_keeps_tuples_balanced_and_drops_every_rejected_candidate():
 @pytest.mark.slow
 def test_finetune_runs_every_seed_and_reports_the_screen():
     from jgrounding import load_library, semantics
-    from jgrounding.generators import methods
     from jgrounding.training import TrainConfig
 
     lib, emb = load_library(), semantics.intent_embeddings()
-    rf = methods.train("tuple_spline_rf", lib, (0, 1), TrainConfig(steps=20, chunk=20), intent_emb=emb, progress=False)
+    rf = trainer.fit("tuple_spline_rf", lib, (0, 1), TrainConfig(steps=20, chunk=20), intent_emb=emb, progress=False)
     cfg = pt.PhysicsConfig(rounds=1, candidates=2, steps=5)
     ft, report = pt.finetune(rf, lib, jax.random.key(0), intent_emb=emb, physics=cfg)
     assert jax.tree.structure(ft.params) == jax.tree.structure(rf.params) and ft.seeds == (0, 1)
@@ -31,4 +32,4 @@ def test_finetune_runs_every_seed_and_reports_the_screen():
     changed = jax.tree.leaves(jax.tree.map(lambda a, b: bool(np.any(a != b)), ft.params, rf.params))
     assert any(changed)
     with pytest.raises(ValueError, match="tuple_spline_rf"):
-        pt.finetune(methods.Trained("tuple_spline_cnn", None, None, (0,), 4), lib, jax.random.key(0), intent_emb=emb)
+        pt.finetune(Trained("tuple_spline_cnn", None, None, (0,), 4), lib, jax.random.key(0), intent_emb=emb)

@@ -8,8 +8,11 @@ import numpy as np
 
 import jgrounding as jg
 from jgrounding import semantics, training
+from jgrounding.config import SampleConfig
+from jgrounding.evaluation import generate
 from jgrounding.generators import methods
 from jgrounding.generators.flows import RectifiedFlow
+from jgrounding.training import trainer
 
 
 def test_training_chunk_traces_once_across_repeated_chunks():
@@ -39,9 +42,11 @@ def test_sampler_traces_once_across_calls(monkeypatch):
     lib = jg.load_library()
     name = "tuple_spline_rf"
     monkeypatch.setitem(methods.REGISTRY, name, dataclasses.replace(methods.REGISTRY[name], generator=CountingFlow()))
-    tr = methods.train(name, lib, (0,), training.TrainConfig(steps=2, chunk=2), progress=False)
+    tr = trainer.fit(name, lib, (0,), training.TrainConfig(steps=2, chunk=2), progress=False)
     emb = semantics.intent_embeddings()
     for i in range(3):  # new keys, conditions and intensities of the same shapes
-        u = methods.generate(tr, emb[[i, i + 1]], np.array([i, 3 - i]), jax.random.key(i), num_samples=2, steps=3)
+        u = generate.generate(
+            tr, emb[[i, i + 1]], np.array([i, 3 - i]), jax.random.key(i), num_samples=2, config=SampleConfig(steps=3)
+        )
         assert u.shape == (1, 2, 2, 150, 4)
     assert CountingFlow.traces == 1

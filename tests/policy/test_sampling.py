@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
-from jgrounding import safety
-from jgrounding.generators import sampling
+from jgrounding import safety, sim
+from jgrounding.policy import sampling
+from jgrounding.training import checkpoints
 
 
 def test_sequences_of_tuples_give_n_k_trajectories():
@@ -108,7 +109,6 @@ def test_sample_blends_in_from_the_current_command_and_a_stream_never_jumps():
 
 @pytest.mark.slow
 def test_screened_samples_all_pass_the_simulator_and_the_rejections_are_counted():
-    from jgrounding import sim
 
     res = sampling.screened(jax.random.key(0), ["nodding", "comforting"], "emphatic", num_samples=6)
     assert res.u.shape == (2, 6, 150, 4) and res.candidates >= 12 and 0 <= res.rejected <= res.candidates - 12
@@ -118,15 +118,12 @@ def test_screened_samples_all_pass_the_simulator_and_the_rejections_are_counted(
 
 
 def test_screening_that_cannot_pass_raises_a_clear_error(monkeypatch):
-    from jgrounding.evaluation import physics
-
-    monkeypatch.setattr(physics, "margins", lambda u, engine="auto": -np.ones(len(u)))  # nothing is feasible
+    monkeypatch.setattr(sim, "margins", lambda u, engine="auto": -np.ones(len(u)))  # nothing is feasible
     with pytest.raises(sampling.ScreeningError, match="budget of 8 candidates"):
         sampling.screened(jax.random.key(0), "nodding", "emphatic", num_samples=2, budget=8)
 
 
 def test_loading_a_checkpoint_names_the_shipped_library_without_importing_it():
     from jgrounding import library
-    from jgrounding.generators import methods
 
-    assert methods.DEFAULT_LIBRARY == library.DEFAULT_PATH
+    assert checkpoints.DEFAULT_LIBRARY == library.DEFAULT_PATH

@@ -4,8 +4,8 @@ import jax
 import numpy as np
 import pytest
 
-from jgrounding.evaluation import physics
-from jgrounding.generators import sampling
+from jgrounding import sim
+from jgrounding.policy import sampling
 
 
 def test_default_budget_is_capped_and_errors_name_the_users_parameter(monkeypatch):
@@ -16,7 +16,7 @@ def test_default_budget_is_capped_and_errors_name_the_users_parameter(monkeypatc
         return np.zeros((num_samples, 150, 4), np.float32)
 
     monkeypatch.setattr(sampling, "sample", fake_sample)
-    monkeypatch.setattr(physics, "margins", lambda u, engine=None: np.ones(len(u)))
+    monkeypatch.setattr(sim, "margins", lambda u, engine=None: np.ones(len(u)))
     res = sampling.screened(jax.random.key(0), "nodding", "moderate", num_samples=1025)
     assert res.u.shape == (1025, 150, 4) and sum(drawn) <= sampling.MAX_SAMPLES
     with pytest.raises(ValueError, match=r"num_samples must be an integer in 1..4096, got 4097"):

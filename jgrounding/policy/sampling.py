@@ -27,7 +27,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jgrounding import safety
+from jgrounding.config import NUM_STEPS, SampleConfig
 from jgrounding.generators import methods
+from jgrounding.generators.trained import Trained
 from jgrounding.training import checkpoints
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
@@ -49,50 +51,38 @@ class Model:
     (sampler, steps, batch bucket).
     """
 
-    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None, guidance: float = 0.0):
-        if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
-            trained = dataclasses.replace(
-                trained, params=jax.tree.map(lambda x: x[:1], trained.params), seeds=trained.seeds[:1]
-            )
+    def __init__(self, trained: Trained, intent_emb, name: str = "model"):
+        trained = trained.first_seed()  # an ablation checkpoint: sample with its first seed
         self.trained = trained
-        self.covered = None if covered is None else frozenset(covered)  # tuples of an imported library
+        covered = trained.library.get("tuples")  # tuples of an imported library (None: all 64)
+        self.covered = None if covered is None else frozenset(covered)
         self.intent_emb = np.asarray(intent_emb, np.float32)
         self.name = name
-        self.generator = methods.spec(trained.method).generator
-        self.guidance = float(guidance)  # classifier-free guidance w of a model trained with condition dropout
-        self._params = jax.device_put(jax.tree.map(lambda x: x[0], trained.params))
+        self.generator = trained.spec.generator
+        self.guidance = float(trained.sample_config.guidance)  # classifier-free guidance w it samples with
+        self._params = jax.device_put(trained.seed_params(0))
         self._emb = jax.device_put(self.intent_emb)
         self._programs: dict = {}
         self._single: dict = {}  # (intent, intensity) -> device index arrays of a single-tuple call
         self._zero = jax.device_put(np.int32(0))
         self._rest = jax.device_put(np.zeros(trained.num_tendons, np.float32))
 
-    def program(self, sampler: str, steps: int, bucket: int, continuity: bool = True, start: bool = False):
+    def program(self, config: SampleConfig, bucket: int, continuity: bool = True, start: bool = False):
         """Gated ``(current (N_u,), intent (B,), intensity (B,), first (), key) -> u (B, 150, N_u)`` float32
         numpy, B = bucket, blended in from the robot's ``current`` command (without ``continuity``: no
         ``current`` argument, first step as the model made it); row ``i`` draws its noise from
         ``fold_in(key, first + i)``. With ``start`` (start-conditioned): ``(current, current, intent, ...)``,
-        the second ``current`` fixing the first spline control (:func:`methods.actuation`)."""
-        cache_key = (sampler, steps, bucket) if continuity else (sampler, steps, bucket, "no-current")
+        the second ``current`` fixing the first spline control (:meth:`Trained.actuation`). ``config``: from
+        :meth:`config`."""
+        cache_key = (config.sampler, config.steps, bucket)
+        cache_key = cache_key if continuity else (*cache_key, "no-current")
         cache_key = (*cache_key, "start") if start else cache_key
         if cache_key not in self._programs:
             tr, params, emb = self.trained, self._params, self._emb
 
             def row(intent, intensity, key, u0=None):  # one trajectory; params and embeddings are constants
-                return methods.actuation(
-                    tr.method,
-                    tr.graphdef,
-                    params,
-                    emb[intent][None],
-                    intensity[None],
-                    key,
-                    sampler=sampler,
-                    steps=steps,
-                    num_controls=tr.num_controls,
-                    num_tendons=tr.num_tendons,
-                    guidance=self.guidance,
-                    start=None if u0 is None else u0[None],
-                )[0]
+                start = None if u0 is None else u0[None]
+                return tr.actuation(key, emb[intent][None], intensity[None], config, params=params, start=start)[0]
 
             def run(intent, intensity, first, key, u0=None):
                 TRACES[(self.name, *cache_key)] += 1  # Python side effect: counts traces, not calls
@@ -110,35 +100,30 @@ class Model:
             return (), False
         return ((self._rest if not start.any() else jax.device_put(start)),), True
 
-    def _check(self, num_samples, sampler, steps) -> tuple[str, int]:
-        if (
-            isinstance(num_samples, bool)
-            or not isinstance(num_samples, (int, np.integer))
-            or not 1 <= num_samples <= MAX_SAMPLES
-        ):
-            raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
+    def config(self, sampler: str | None = None, steps: int = SampleConfig.steps) -> SampleConfig:
+        """The :class:`SampleConfig` this model samples with for a user's ``sampler`` (None: the generator's
+        default) and ``steps``, its recorded guidance kept; ``ValueError`` naming the valid choices."""
         valid = self.generator.samplers  # the first is the generator's default
         sampler = valid[0] if sampler is None else sampler
         if not isinstance(sampler, str) or sampler not in valid:
             raise ValueError(f"unknown sampler {sampler!r}; valid: {', '.join(valid)}")
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 1000:
             raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
-        return sampler, int(steps) if self.generator.iterative else 1
+        steps = int(steps) if self.generator.iterative else 1
+        return dataclasses.replace(self.trained.sample_config, sampler=sampler, steps=steps)
 
     def sample(
-        self,
-        key,
-        intent,
-        intensity,
-        num_samples: int = 1,
-        *,
-        sampler: str | None = None,
-        steps: int = 50,
-        current=safety.REST,
-        start_conditioned: bool = False,
+        self, key, intent, intensity, num_samples=1, config=None, *, current=safety.REST, start_conditioned=False
     ) -> np.ndarray:
-        """:func:`sample` for this model (same arguments, shapes and errors)."""
-        sampler, steps = self._check(num_samples, sampler, steps)
+        """:func:`sample` for this model with ``config`` (a :class:`SampleConfig` from :meth:`config`; default:
+        the model's own), from the robot's ``current`` command (same shapes and errors as :func:`sample`)."""
+        if (
+            isinstance(num_samples, bool)
+            or not isinstance(num_samples, (int, np.integer))
+            or not 1 <= num_samples <= MAX_SAMPLES
+        ):
+            raise ValueError(f"num_samples must be an integer in 1..{MAX_SAMPLES}, got {num_samples!r}")
+        config = self.config() if config is None else config
         key = as_key(key)
         prefix, continuity = self._current(current)
         if start_conditioned is not False:
@@ -157,20 +142,11 @@ class Model:
                 if args is None:
                     self._check_covered([m], [z])
                     args = self._single[(m, z)] = jax.device_put((np.array([m], np.int32), np.array([z], np.int32)))
-                return self.program(sampler, steps, 1, continuity, start)(*prefix, *args, self._zero, key)[0]
-            return self._run(
-                key,
-                np.array([m], np.int32),
-                np.array([z], np.int32),
-                num_samples,
-                sampler,
-                steps,
-                prefix,
-                continuity,
-                start,
-            )[0]
+                return self.program(config, 1, continuity, start)(*prefix, *args, self._zero, key)[0]
+            one = np.array([m], np.int32), np.array([z], np.int32)
+            return self._run(key, *one, num_samples, config, prefix, continuity, start)[0]
         m, z = _indices(ms, zs, intent, intensity)
-        return self._run(key, m, z, num_samples, sampler, steps, prefix, continuity, start)
+        return self._run(key, m, z, num_samples, config, prefix, continuity, start)
 
     def _check_covered(self, ms, zs) -> None:
         if self.covered is None:
@@ -183,7 +159,7 @@ class Model:
                     f"{INTENSITIES[z]}); its tuples: {names}"
                 )
 
-    def _run(self, key, m, z, k, sampler, steps, prefix=(), continuity=False, start_conditioned=False) -> np.ndarray:
+    def _run(self, key, m, z, k, config, prefix=(), continuity=False, start_conditioned=False) -> np.ndarray:
         """``(N, K, 150, N_u)`` for index arrays ``m, z (N,)``, in chunks of at most the largest bucket."""
         self._check_covered(m, z)
         total = len(m) * k
@@ -193,17 +169,17 @@ class Model:
             )
         rows_m, rows_z = np.repeat(m, k), np.repeat(z, k)
         n_u = self.trained.num_tendons
-        out = np.empty((total, methods.T, n_u), np.float32)
+        out = np.empty((total, NUM_STEPS, n_u), np.float32)
         chunk = BUCKETS[-1]
         for start in range(0, total, chunk):
             n = min(chunk, total - start)
             bucket = next(b for b in BUCKETS if b >= n)
             pad = bucket - n
             cm, cz = np.pad(rows_m[start : start + n], (0, pad)), np.pad(rows_z[start : start + n], (0, pad))
-            out[start : start + n] = self.program(sampler, steps, bucket, continuity, start_conditioned)(
+            out[start : start + n] = self.program(config, bucket, continuity, start_conditioned)(
                 *prefix, cm, cz, np.int32(start), key
             )[:n]
-        return out.reshape(len(m), k, methods.T, n_u)
+        return out.reshape(len(m), k, NUM_STEPS, n_u)
 
 
 def _sequence(values) -> list | None:
@@ -246,36 +222,6 @@ def _indices(ms: list | None, zs: list | None, intent, intensity) -> tuple[np.nd
     return m, z
 
 
-def check_library(path: Path) -> None:
-    """Refuse a checkpoint whose recorded library file (``library_path`` in its meta.json, written by
-    ``experiments.train``) exists but no longer has the sha256 the checkpoint was trained on."""
-    from jgrounding.training import checkpoints
-
-    meta = checkpoints.read_meta(path) if (Path(path) / "meta.json").exists() else {}
-    lib_path, digest = meta.get("library_path"), meta.get("library_sha256")
-    if not (lib_path and digest and Path(lib_path).is_file()):
-        return
-    from jgrounding import io
-
-    if io.sha256_file(lib_path) != digest:
-        raise ValueError(
-            f"checkpoint {path} was trained on library {lib_path} with sha256 {digest[:12]}..., but that "
-            f"file now has sha256 {io.sha256_file(lib_path)[:12]}...; retrain on the current library "
-            "(python -m experiments.train --library ...) or restore the library it was trained on"
-        )
-
-
-def trained_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
-    """The (intent, intensity) tuples a checkpoint's library holds (``None``: all 64, or not recorded)."""
-    from jgrounding.training import checkpoints
-
-    path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
-    tuples = checkpoints.read_meta(path).get("tuples")
-    if not tuples:
-        return None
-    return tuple((intent_index(t.split("/")[0]), intensity_index(t.split("/")[1])) for t in tuples)
-
-
 def as_key(key):
     accepted = "a typed key from jax.random.key(seed) or a raw uint32[2] key from jax.random.PRNGKey(seed)"
     if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
@@ -294,26 +240,24 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
     """The :class:`Model` of a checkpoint directory (default: the shipped RF), restored once per process.
 
     Refuses (``ValueError`` naming the directory) a checkpoint of an unknown method, another
-    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.generators.methods.restore`), and one whose
-    model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
+    vocabulary, wrong array shapes or non-finite weights (:func:`jgrounding.training.checkpoints.restore_trained`),
+    and one whose model fails a self-test: one sample of the first tuple must be a finite ``(150, 4)`` trajectory.
     An ablation checkpoint (several seeds) samples with its first seed. A checkpoint trained on another
-    library version is refused unless ``allow_library_mismatch`` (:func:`methods.library_mismatch`).
+    library is refused unless ``allow_library_mismatch`` (the one rule: :func:`checkpoints.library_mismatch`).
     """
     from jgrounding import semantics
 
     if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
         raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint).__name__}")
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
-    check_library(path)
-    trained = methods.restore(path, allow_library_mismatch=allow_library_mismatch)
-    w = float(checkpoints.read_meta(path).get("sample", {}).get("guidance", 0.0))  # its recorded guidance
-    loaded = Model(trained, semantics.intent_embeddings(), name=str(path), covered=trained_tuples(path), guidance=w)
+    trained = checkpoints.restore_trained(path, allow_library_mismatch=allow_library_mismatch)
+    loaded = Model(trained, semantics.intent_embeddings(), name=str(path))
     m, z = min(loaded.covered) if loaded.covered else (0, 0)
     try:  # the self-test compiles the executable the first default ``sample`` call reuses
         u = loaded.sample(jax.random.key(0), m, z)
     except safety.UnsafeActuationError as err:
         u = err
-    if not isinstance(u, np.ndarray) or u.shape != (methods.T, trained.num_tendons):
+    if not isinstance(u, np.ndarray) or u.shape != (NUM_STEPS, trained.num_tendons):
         bad = f"shape {u.shape}" if isinstance(u, np.ndarray) else f"non-finite values ({u})"
         raise ValueError(
             f"checkpoint {path} failed its load self-test: a sample of "
@@ -322,7 +266,6 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
     return loaded
 
 
-@functools.lru_cache(maxsize=64)
 @functools.lru_cache(maxsize=4)
 def _shipped_manifest(path: Path) -> dict | None:
     """The parsed shipped-model manifest, read once per process (not on every ``jg.sample`` call)."""
@@ -432,15 +375,10 @@ def sample(
     if checkpoint is None and isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
         if sampler is None or isinstance(sampler, str):
             checkpoint = _route(SHIPPED, int(steps), sampler)
-    return model(checkpoint, allow_library_mismatch).sample(
-        key,
-        intent,
-        intensity,
-        num_samples,
-        sampler=sampler,
-        steps=steps,
-        current=current,
-        start_conditioned=start_conditioned,
+    loaded = model(checkpoint, allow_library_mismatch)
+    config = loaded.config(sampler, steps)
+    return loaded.sample(
+        key, intent, intensity, num_samples, config, current=current, start_conditioned=start_conditioned
     )
 
 
@@ -485,7 +423,6 @@ def screened(
       candidates pass.
     """
     from jgrounding import sim
-    from jgrounding.evaluation import physics
 
     if (
         isinstance(num_samples, bool)
@@ -521,7 +458,7 @@ def screened(
                 f"has {u.shape[-1]} tendons"
             )
         t0 = time.perf_counter()
-        ok = (physics.margins(u.reshape(-1, *u.shape[-2:]), engine=engine) >= 0).reshape(u.shape[:2])
+        ok = (sim.margins(u.reshape(-1, *u.shape[-2:]), engine=engine) >= 0).reshape(u.shape[:2])
         seconds += time.perf_counter() - t0
         kept = kept or [[] for _ in range(len(u))]
         for j in range(len(u)):

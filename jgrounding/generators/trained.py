@@ -1,0 +1,104 @@
+"""A trained model owns its sampling: :class:`Trained` holds a method's network, its parameters (one leading
+axis per training seed), its sizes, its sampling defaults and the identity of the library it learned from,
+and :meth:`Trained.sample` turns conditions into gated actuation.
+
+Like openpi's model (``sample_actions`` on the model itself): the public sampler
+(:mod:`jgrounding.policy`), the evaluation's batch generation (:mod:`jgrounding.evaluation.generate`), the
+physics-aware fine-tuning and the benches all call :meth:`Trained.actuation` / :meth:`Trained.sample` with a
+:class:`~jgrounding.config.SampleConfig`, never the generator with loose arguments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import nnx
+
+from jgrounding import safety
+from jgrounding.config import NUM_CONTROLS, NUM_TENDONS, ModelConfig, SampleConfig
+from jgrounding.generators import methods
+
+
+@dataclasses.dataclass(frozen=True)
+class Trained:
+    """Parameters of ``len(seeds)`` runs of one method (leading axis = seed) and what sampling them needs.
+
+    ``sample_config``: the sampling defaults it was chosen with (e.g. the guidance w of a shipped model);
+    ``library``: the identity of the library it was trained on as its checkpoint records it
+    (``version``, ``sha256``, ``path`` and ``tuples`` where known; empty for a model trained in memory)."""
+
+    method: str
+    graphdef: Any
+    params: Any
+    seeds: tuple[int, ...]
+    num_controls: int = NUM_CONTROLS
+    losses: Any = None
+    num_tendons: int = NUM_TENDONS  # N_u of the library it was trained on
+    model: ModelConfig = ModelConfig()  # network sizes (recorded in its checkpoints)
+    sample_config: SampleConfig = SampleConfig()
+    library: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def spec(self) -> methods.MethodSpec:
+        return methods.spec(self.method)
+
+    @property
+    def dim(self) -> int:
+        """Flat size D = N_u x L of the generator's target."""
+        return self.num_tendons * self.spec.representation.length(self.num_controls)
+
+    def seed_params(self, i: int = 0):
+        """The parameters of seed position ``i`` (no seed axis)."""
+        return jax.tree.map(lambda x: x[i], self.params)
+
+    def first_seed(self) -> Trained:
+        """This model restricted to its first seed (the seed axis kept, size 1)."""
+        if len(self.seeds) == 1:
+            return self
+        return dataclasses.replace(self, params=jax.tree.map(lambda x: x[:1], self.params), seeds=self.seeds[:1])
+
+    def resolve(self, config: SampleConfig | None = None) -> SampleConfig:
+        """``config`` (default: this model's own :attr:`sample_config`) with the generator's default sampler
+        filled in; ``ValueError`` naming the valid samplers for one this generator does not have."""
+        config = self.sample_config if config is None else config
+        valid = self.spec.generator.samplers  # the first is the generator's default
+        if config.sampler is None:
+            return dataclasses.replace(config, sampler=valid[0])
+        if config.sampler not in valid:
+            raise ValueError(f"unknown sampler {config.sampler!r} for {self.method}; valid: {', '.join(valid)}")
+        return config
+
+    def actuation(self, key, cond, intensity, config: SampleConfig | None = None, *, params=None, start=None):
+        """Ungated actuation for a batch of conditions: the generator's sample decoded to [0, 1] and, for a
+        spline method, reconstructed u = R(c). Pure: jit and vmap it (over ``params`` for several seeds).
+
+        Args:
+          key: one key for the batch; cond: condition embeddings ``(B, E)``; intensity: ``(B,)`` int32.
+          config: sampler, steps and guidance (default: :attr:`sample_config`; :meth:`resolve`).
+          params: one seed's parameters (default: the first seed's).
+          start: ``(B, N_u)`` commands in [0, 1] or None. Given, the first Catmull-Rom control column is fixed
+            to it by inpainting during the flow integration (:func:`flows.rf_sample`), so ``u[:, 0] == start``
+            and the rest of the motion is generated from that state.
+        Returns:
+          u ``(B, 150, N_u)``, not yet through the safety gate (:meth:`sample` gates it).
+        """
+        s, config = self.spec, self.resolve(config)
+        model = nnx.merge(self.graphdef, self.seed_params(0) if params is None else params)
+        cond = methods.bound_condition(cond)
+        if start is None:
+            y = s.generator.sample(model, cond, intensity, key, self.dim, config)
+        else:
+            methods.check_start_conditioning(self.method)
+            # Flat layout of the targets: (N_u, P) row-major, so tendon j's first control is coordinate j * P.
+            mask = (jnp.arange(self.dim) % self.num_controls) == 0
+            first = jnp.repeat(methods.encode(jnp.asarray(start, jnp.float32)), self.num_controls, axis=-1)
+            y = s.generator.sample(model, cond, intensity, key, self.dim, config, known=(mask, first))
+        return s.representation.actuation(methods.decode(y), s.generator.sequence, self.num_tendons, self.num_controls)
+
+    def sample(self, key, cond, intensity, config: SampleConfig | None = None, *, params=None, start=None):
+        """:meth:`actuation` through the one safety gate (:func:`jgrounding.safety.make_safe`): ``(B, 150, N_u)``
+        inside the actuation bounds, slew-limited, never NaN."""
+        return safety.make_safe(self.actuation(key, cond, intensity, config, params=params, start=start))
