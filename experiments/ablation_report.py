@@ -287,7 +287,7 @@ def findings(res: dict) -> list[str]:
             "CNN diversity: "
             + ", ".join(f"{methods.DISPLAY[m]} {r[m]['diversity'][0]:.4f}" for m in cnn)
             + (
-                " — all 0: deterministic, as in the paper."
+                " — all 0: deterministic regressors (one output per condition), as in the paper."
                 if all(r[m]["diversity"][0] < 1e-6 for m in cnn)
                 else " — not all 0."
             )

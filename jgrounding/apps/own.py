@@ -22,9 +22,9 @@ def checkpoint_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
     """The (intent, intensity) index pairs a checkpoint was trained on (None: every tuple)."""
     if checkpoint is None:
         return None
-    from jgrounding.policy import sampling
+    from jgrounding.training import checkpoints
 
-    return sampling.trained_tuples(checkpoint)
+    return checkpoints.trained_tuples(checkpoints.read_meta(checkpoint))
 
 
 def _names(tuples) -> str:

@@ -228,11 +228,12 @@ def library_mismatch(path, meta: dict) -> str | None:
     except (OSError, ValueError):
         current = "unknown"
     retrain = f"--library {lib_path} " if meta.get("library_path") else ""
+    was = meta.get("library_version", "1 (unversioned)")
+    now_is = f"is library version {current}" if current != was else "has changed since (same version name)"
     return (
-        f"checkpoint {path} was trained on library version {meta.get('library_version', '1 (unversioned)')} "
-        f"(sha256 {digest[:12]}...), but {lib_path} is library version {current} (sha256 {now[:12]}...); "
-        f"retrain it (python -m experiments.train {retrain}--out {path}) or pass allow_library_mismatch=True "
-        "(--allow-library-mismatch) to use it anyway"
+        f"checkpoint {path} was trained on library version {was} (sha256 {digest[:12]}...), but {lib_path} "
+        f"{now_is} (sha256 {now[:12]}...); retrain it (python -m experiments.train {retrain}--out {path}) or pass "
+        "allow_library_mismatch=True (--allow-library-mismatch) to use it anyway"
     )
 
 
