@@ -144,7 +144,7 @@ class _Jump:
     def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):
         """S jumps from ``eps = N(key) (B, D)``; guidance w: net = net_c + w (net_c - net_null)."""
         b = cond.shape[0]
-        eps = jax.random.normal(key, (b, dim))
+        eps = config.noise_scale * jax.random.normal(key, (b, dim))  # temperature of the initial noise
         ctx = model.context(cond, intensity)
         w = config.guidance
         if w:

@@ -445,12 +445,14 @@ def actuation(
     num_tendons: int = 4,
     guidance: float = 0.0,
     start=None,
+    noise_scale: float = 1.0,
 ):
     """Ungated actuation for a batch of conditions: the generator's sample (normalized controls or
     trajectory), decoded to [0, 1], and the spline reconstruction u = R(c) for spline methods.
 
     Args:
       cond: condition embeddings ``(B, 384)``; intensity: ``(B,)`` int32; key: one key for the batch.
+      noise_scale: temperature of the initial noise (:class:`SampleConfig`; 1 = as trained).
       start: ``(B, N_u)`` commands in [0, 1] or None. Given, the first Catmull-Rom control column is fixed
         to it by inpainting during the flow integration (:func:`flows.rf_sample`), so ``u[:, 0] == start``
         and the rest of the motion is generated from that state (:func:`check_start_conditioning`).
@@ -460,7 +462,7 @@ def actuation(
     s = spec(method)
     model = nnx.merge(graphdef, params)
     dim = num_tendons * s.representation.length(num_controls)
-    config = SampleConfig(sampler, steps, guidance)
+    config = SampleConfig(sampler, steps, guidance, noise_scale)
     cond = bound_condition(cond)
     if start is None:
         y = s.generator.sample(model, cond, intensity, key, dim, config)

@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jgrounding import safety
+from jgrounding.config import SampleConfig
 from jgrounding.generators import methods
 from jgrounding.training import checkpoints
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
@@ -49,7 +50,15 @@ class Model:
     (sampler, steps, batch bucket).
     """
 
-    def __init__(self, trained: methods.Trained, intent_emb, name: str = "model", covered=None, guidance: float = 0.0):
+    def __init__(
+        self,
+        trained: methods.Trained,
+        intent_emb,
+        name: str = "model",
+        covered=None,
+        guidance: float = 0.0,
+        noise_scale: float | dict = 1.0,
+    ):
         if len(trained.seeds) > 1:  # an ablation checkpoint: sample with its first seed
             trained = dataclasses.replace(
                 trained, params=jax.tree.map(lambda x: x[:1], trained.params), seeds=trained.seeds[:1]
@@ -60,6 +69,11 @@ class Model:
         self.name = name
         self.generator = methods.spec(trained.method).generator
         self.guidance = float(guidance)  # classifier-free guidance w of a model trained with condition dropout
+        # temperature of the initial noise: one number, or {steps: number} (1 for the step counts not listed)
+        scales = noise_scale if isinstance(noise_scale, dict) else {None: noise_scale}
+        self.noise_scale = {None if s is None else int(s): float(v) for s, v in scales.items()}
+        for v in self.noise_scale.values():
+            SampleConfig(noise_scale=v)  # ValueError naming the valid range
         self._params = jax.device_put(jax.tree.map(lambda x: x[0], trained.params))
         self._emb = jax.device_put(self.intent_emb)
         self._programs: dict = {}
@@ -92,6 +106,7 @@ class Model:
                     num_tendons=tr.num_tendons,
                     guidance=self.guidance,
                     start=None if u0 is None else u0[None],
+                    noise_scale=self.temperature(steps),
                 )[0]
 
             def run(intent, intensity, first, key, u0=None):
@@ -102,6 +117,10 @@ class Model:
             fn = (lambda u0, *args: run(*args, u0=u0)) if start else run
             self._programs[cache_key] = safety.gated(fn, continuity=continuity)
         return self._programs[cache_key]
+
+    def temperature(self, steps: int) -> float:
+        """The initial-noise scale this model samples ``steps`` steps with (its recorded choice, else 1)."""
+        return self.noise_scale.get(steps, self.noise_scale.get(None, 1.0))
 
     def _current(self, current):
         """``(program prefix args, continuity)`` for the robot's current command (validated by the gate)."""
@@ -306,8 +325,16 @@ def model(checkpoint: str | Path | None = None, allow_library_mismatch: bool = F
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
     check_library(path)
     trained = methods.restore(path, allow_library_mismatch=allow_library_mismatch)
-    w = float(checkpoints.read_meta(path).get("sample", {}).get("guidance", 0.0))  # its recorded guidance
-    loaded = Model(trained, semantics.intent_embeddings(), name=str(path), covered=trained_tuples(path), guidance=w)
+    recorded = checkpoints.read_meta(path).get("sample", {})  # its recorded guidance and noise scale(s)
+    w, scale = float(recorded.get("guidance", 0.0)), recorded.get("noise_scale", 1.0)
+    loaded = Model(
+        trained,
+        semantics.intent_embeddings(),
+        name=str(path),
+        covered=trained_tuples(path),
+        guidance=w,
+        noise_scale=scale,
+    )
     m, z = min(loaded.covered) if loaded.covered else (0, 0)
     try:  # the self-test compiles the executable the first default ``sample`` call reuses
         u = loaded.sample(jax.random.key(0), m, z)
