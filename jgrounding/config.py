@@ -114,17 +114,21 @@ class TrainConfig:
 class SampleConfig:
     """Sampling of Table I (S = 50 steps of the generator's default sampler: Euler for a rectified flow,
     ancestral for a DDPM); ``guidance`` w: v = v_c + w (v_c - v_null), 0 = off. ``sampler`` None: the
-    generator's default; a name it does not have is refused when sampling (never silently replaced)."""
+    generator's default; a name it does not have is refused when sampling (never silently replaced).
+    ``noise_scale``: temperature of the initial noise, eps ~ N(0, noise_scale^2 I) (1 = the trained prior;
+    above 1 spreads the samples of an under-dispersed few-step model, issue #25)."""
 
     sampler: str | None = None
     steps: int = 50
     guidance: float = 0.0
+    noise_scale: float = 1.0
 
     def __post_init__(self):
         if self.sampler is not None and self.sampler not in SAMPLERS:
             raise ValueError(f"SampleConfig.sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
         _integer("SampleConfig", "steps", self.steps, 1)
         _real("SampleConfig", "guidance", self.guidance, 0.0, 20.0)
+        _real("SampleConfig", "noise_scale", self.noise_scale, 0.1, 4.0)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -139,7 +139,7 @@ class _Jump:
     def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):
         """S jumps from ``eps = N(key) (B, D)``; guidance w: net = net_c + w (net_c - net_null)."""
         b = cond.shape[0]
-        eps = jax.random.normal(key, (b, dim))
+        eps = config.noise_scale * jax.random.normal(key, (b, dim))  # temperature of the initial noise
         net = guided(model, model.context(cond, intensity), config.guidance)
         times = np.linspace(0.0, 1.0, config.steps + 1)
         return jump_sample(net, eps, times, self.second(config.steps), model.time_context, known)

@@ -246,7 +246,7 @@ class _Flow:
         conditional and null rows through the network as one batch. ``known``: coordinates fixed by
         inpainting (:func:`rf_sample`; rectified flow only)."""
         b = cond.shape[0]
-        eps = jax.random.normal(key, (b, dim))
+        eps = config.noise_scale * jax.random.normal(key, (b, dim))  # temperature of the initial noise
         # What does not change across flow steps is computed once, before the sampler's loop: the
         # condition's share of the first layer, and the time embedding's share for every step.
         net = guided(model, model.context(cond, intensity), config.guidance)

@@ -26,7 +26,8 @@ from jgrounding.generators import methods
 class Trained:
     """Parameters of ``len(seeds)`` runs of one method (leading axis = seed) and what sampling them needs.
 
-    ``sample_config``: the sampling defaults it was chosen with (e.g. the guidance w of a shipped model);
+    ``sample_config``: the sampling defaults it was chosen with (e.g. the guidance w of a shipped model), and
+    ``noise_scales`` the initial-noise temperature chosen for particular step counts (issue #25);
     ``library``: the identity of the library it was trained on as its checkpoint records it
     (``version``, ``sha256``, ``path`` and ``tuples`` where known; empty for a model trained in memory)."""
 
@@ -40,6 +41,7 @@ class Trained:
     model: ModelConfig = ModelConfig()  # network sizes (recorded in its checkpoints)
     sample_config: SampleConfig = SampleConfig()
     library: dict = dataclasses.field(default_factory=dict)
+    noise_scales: dict = dataclasses.field(default_factory=dict)  # {steps: noise scale} recorded per step count
 
     @property
     def spec(self) -> methods.MethodSpec:

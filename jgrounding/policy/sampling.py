@@ -60,6 +60,7 @@ class Model:
         self.name = name
         self.generator = trained.spec.generator
         self.guidance = float(trained.sample_config.guidance)  # classifier-free guidance w it samples with
+        self.noise_scale = {None: trained.sample_config.noise_scale, **trained.noise_scales}  # per step count
         self._params = jax.device_put(trained.seed_params(0))
         self._emb = jax.device_put(self.intent_emb)
         self._programs: dict = {}
@@ -93,6 +94,10 @@ class Model:
             self._programs[cache_key] = safety.gated(fn, continuity=continuity)
         return self._programs[cache_key]
 
+    def temperature(self, steps: int) -> float:
+        """The initial-noise scale this model samples ``steps`` steps with (its recorded choice, else 1)."""
+        return self.noise_scale.get(steps, self.noise_scale.get(None, 1.0))
+
     def _current(self, current):
         """``(program prefix args, continuity)`` for the robot's current command (validated by the gate)."""
         start = safety.current_command(current, self.trained.num_tendons)
@@ -110,7 +115,9 @@ class Model:
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 1000:
             raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
         steps = int(steps) if self.generator.iterative else 1
-        return dataclasses.replace(self.trained.sample_config, sampler=sampler, steps=steps)
+        return dataclasses.replace(
+            self.trained.sample_config, sampler=sampler, steps=steps, noise_scale=self.temperature(steps)
+        )
 
     def sample(
         self, key, intent, intensity, num_samples=1, config=None, *, current=safety.REST, start_conditioned=False

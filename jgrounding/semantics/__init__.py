@@ -94,7 +94,12 @@ def warmup(max_tokens: int = 128) -> None:
     from jgrounding.semantics import head as semantic_head
 
     head = semantic_head.load()
-    encoder.warmup(max_tokens, pools=NUM_POOLS if head.config.inputs == "structure" else 0)
+    if head.config.inputs == "tuned":  # one program per bucket: the tuned encoder and the head together
+        from jgrounding.semantics.embedded import warmup_tuned
+
+        warmup_tuned(head, max_tokens)
+    else:
+        encoder.warmup(max_tokens, pools=NUM_POOLS if head.config.inputs == "structure" else 0)
     ground_embedded("warm up")
 
 

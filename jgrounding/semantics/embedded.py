@@ -529,10 +529,25 @@ def pooled_embeddings(texts, structs, batch_size: int = 64, params=None) -> np.n
     from jgrounding.semantics import encoder
 
     params = params or encoder.load_params()
-    enc = encoder.tokenizer().encode_batch(list(texts))
     pooled = np.zeros((len(texts), NUM_POOLS, encoder.HIDDEN), np.float32)
+    for idx, ids, mask, pools in encoder_batches(texts, structs, batch_size):
+        pooled[idx] = np.asarray(encoder.pool_ids(params, ids, mask, pools))[: len(idx)]
+    return pooled
+
+
+def encoder_batches(texts, structs, batch_size: int = 64):
+    """Batches of the encoder's inputs: yields ``(idx, ids, mask, pools)``, the texts' indices and their token ids,
+    attention mask ``(B, L)`` and the four span pools ``(B, 4, L)``.
+
+    Texts are sorted by token count, so each batch is padded only to the bucket of its own longest text
+    (:func:`jgrounding.semantics.encoder.bucket_length`) and to 1, 8 or ``batch_size`` rows: a text alone runs a
+    ``(1, L)`` program with the shortest bucket that holds it. Padded positions are masked out of attention and
+    pooling, so the bucket does not change the result (to float rounding)."""
+    from jgrounding.semantics import encoder
+
+    enc = encoder.tokenizer().encode_batch(list(texts))
     order = np.argsort([len(e.ids) for e in enc], kind="stable")
-    for start in range(0, len(texts), batch_size):
+    for start in range(0, len(enc), batch_size):
         idx = order[start : start + batch_size]
         chunk = [enc[i] for i in idx]
         rows = next(b for b in (1, 8, batch_size) if b >= len(chunk))
@@ -543,8 +558,48 @@ def pooled_embeddings(texts, structs, batch_size: int = 64, params=None) -> np.n
         for row, i in enumerate(idx):
             st = structs[i]
             pools[row] = encoder.span_pools(enc[i], [("except", st.rejected), st.rejected, st.quoted], length)
-        pooled[idx] = np.asarray(encoder.pool_ids(params, ids, mask, pools))[: len(chunk)]
-    return pooled
+        yield idx, ids, mask, pools
+
+
+def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tuned head's probabilities of many texts (intent ``(N, 17)``, intensity ``(N, 4)``, reason ``(N, R)``):
+    one compiled program per batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head
+    together, so one text costs one dispatch."""
+    from jgrounding.semantics import head as semantic_head
+    from jgrounding.semantics import structure
+
+    texts = list(texts)
+    structs = [structure.analyse(t) for t in texts]
+    extras = np.stack([tuned_extras(t, st) for t, st in zip(texts, structs)])
+    enc_params = head.encoder_params()
+    out = None
+    for idx, ids, mask, pools in encoder_batches(texts, structs, batch_size):
+        x = np.zeros((len(ids), extras.shape[1]), np.float32)
+        x[: len(idx)] = extras[idx]
+        probs = semantic_head.predict_tuned(enc_params, head.params, ids, mask, pools, x, head.temperature)
+        probs = [np.asarray(a)[: len(idx)] for a in probs]
+        if out is None:
+            out = [np.zeros((len(texts), a.shape[1]), np.float32) for a in probs]
+        for o, a in zip(out, probs):
+            o[idx] = a
+    return tuple(out)
+
+
+def warmup_tuned(head, max_tokens: int = 128) -> None:
+    """Compile (or load from the compilation cache) the tuned head's program for one text in every token bucket up
+    to ``max_tokens``, so no later single-text ``ground`` waits for a compile."""
+    from jgrounding.semantics import encoder
+    from jgrounding.semantics import head as semantic_head
+
+    enc_params = head.encoder_params()
+    extras = np.zeros((1, head.config.num_features - NUM_POOLS * encoder.HIDDEN), np.float32)
+    for length in encoder.BUCKETS:
+        if length > max(max_tokens, encoder.BUCKETS[0]):
+            break
+        ids, mask = np.zeros((1, length), np.int32), np.ones((1, length), np.int32)
+        pools = np.ones((1, NUM_POOLS, length), np.float32)
+        for a in semantic_head.predict_tuned(enc_params, head.params, ids, mask, pools, extras, head.temperature):
+            a.block_until_ready()
 
 
 def structure_features_from(texts, structs, pooled, tuned: bool = False) -> np.ndarray:
@@ -619,8 +674,13 @@ def ground_embedded_many(texts, head=None) -> list[Grounding]:
     if not texts:
         return []
     head = head or semantic_head.load()
-    x = head_inputs(head, texts)
-    p_intent, p_intensity, p_why = (np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature))
+    if head.config.inputs == "tuned":
+        p_intent, p_intensity, p_why = predict_tuned_many(head, texts)
+    else:
+        x = head_inputs(head, texts)
+        p_intent, p_intensity, p_why = (
+            np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature)
+        )
     p_why = p_why if "why_w" in head.params else None
     ms, zs, confs = semantic_head.decide(p_intent, p_intensity)
     out = []

@@ -72,16 +72,18 @@ def enable_compilation_cache() -> str | None:
 
 
 @functools.lru_cache(maxsize=1)
-def load_params() -> dict:
-    """The encoder's weights as a pytree of float32 jax arrays.
+def load_numpy() -> dict:
+    """The encoder's weights as a pytree of contiguous float32 numpy arrays, read from the one weights file.
 
     Linear weights are transposed to ``(in, out)``; the six transformer layers are stacked on a leading
     axis so the compiled encoder runs them with one ``lax.scan`` (one traced layer, short compiles).
     """
     from safetensors.numpy import load_file
 
-    enable_compilation_cache()
     w = load_file(str(model_dir() / "model.safetensors"))
+
+    def f32(x):
+        return np.ascontiguousarray(x, np.float32)
 
     def dense(prefix):
         return {"w": w[prefix + ".weight"].T, "b": w[prefix + ".bias"]}
@@ -102,15 +104,22 @@ def load_params() -> dict:
             "ln2": norm(p + "output.LayerNorm"),
         }
 
-    layers = jax.tree.map(lambda *xs: np.stack(xs), *[layer(i) for i in range(NUM_LAYERS)])
+    layers = jax.tree.map(lambda *xs: f32(np.stack(xs)), *[layer(i) for i in range(NUM_LAYERS)])
     params = {
-        "word": w["embeddings.word_embeddings.weight"],
-        "pos": w["embeddings.position_embeddings.weight"],
-        "type": w["embeddings.token_type_embeddings.weight"],
-        "ln": norm("embeddings.LayerNorm"),
+        "word": f32(w["embeddings.word_embeddings.weight"]),
+        "pos": f32(w["embeddings.position_embeddings.weight"]),
+        "type": f32(w["embeddings.token_type_embeddings.weight"]),
+        "ln": jax.tree.map(f32, norm("embeddings.LayerNorm")),
         "layers": layers,
     }
-    return jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), params)
+    return params
+
+
+@functools.lru_cache(maxsize=1)
+def load_params() -> dict:
+    """The encoder's weights (:func:`load_numpy`) as a pytree of float32 jax arrays, put on the device at once."""
+    enable_compilation_cache()
+    return jax.device_put(load_numpy())
 
 
 @functools.lru_cache(maxsize=1)

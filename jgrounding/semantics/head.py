@@ -26,7 +26,6 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 
 from jgrounding.vocabulary import NUM_INTENTS
 
@@ -147,6 +146,8 @@ def train(key, x, intent, intensity, weight, cfg: HeadConfig, why=None) -> tuple
     no-behaviour reason class or -1 (only with ``cfg.num_reasons``).
     Returns: (params, losses ``(steps,)``).
     """
+    import optax  # training only: grounding does not import it
+
     init_key, dropout_key = jax.random.split(key)
     params = init(init_key, cfg, x.shape[1])
     opt = optax.adamw(cfg.learning_rate, weight_decay=cfg.l2)
@@ -173,8 +174,7 @@ def _single(params: dict, x, temperature):
     return logits / temperature, intensity_log_probs(params, x), why
 
 
-@jax.jit
-def predict_all(params: dict, x, temperature):
+def _predict_all(params: dict, x, temperature):
     """Args: x ``(N, F)``; temperature scalar. Returns intent probs ``(N, 17)``, intensity probs ``(N, 4)`` and the
     no-behaviour reason probs ``(N, R)`` (``(N, 1)`` without a reason head), in one compiled call.
 
@@ -189,6 +189,24 @@ def predict_all(params: dict, x, temperature):
         )
     logits, zlogp, why = _single(params, x, temperature)
     return jax.nn.softmax(logits), jnp.exp(zlogp), jax.nn.softmax(why, axis=-1)
+
+
+predict_all = jax.jit(_predict_all)
+
+
+@jax.jit
+def predict_tuned(enc_params: dict, params: dict, ids, mask, pools, extras, temperature):
+    """The tuned head's whole grounding of a batch in one compiled program: the encoder (with its tuned top
+    layers) pooled four ways (:func:`jgrounding.semantics.encoder.pool_ids`), the pooled vectors next to the
+    non-encoder inputs, then :func:`predict_all`.
+
+    Args: enc_params (:meth:`Head.encoder_params`); ids, mask ``(B, L)``; pools ``(B, 4, L)``; extras ``(B, E)``
+    (:func:`jgrounding.semantics.embedded.tuned_extras`). Returns :func:`predict_all`'s three arrays."""
+    from jgrounding.semantics import encoder
+
+    pooled = encoder.pool_ids(enc_params, ids, mask, pools)
+    x = jnp.concatenate([pooled.reshape(pooled.shape[0], -1), extras], axis=1)
+    return _predict_all(params, x, temperature)
 
 
 def predict(params: dict, x, temperature):
@@ -255,22 +273,24 @@ def top_deltas(top: dict, cfg: HeadConfig) -> dict:
     the frozen MiniLM's, which is how they are shipped (small, and exact to ~1e-6 of the weights)."""
     from jgrounding.semantics import encoder
 
-    base = jax.tree.map(lambda x: np.asarray(x[-cfg.tuned_layers :]), encoder.load_params()["layers"])
+    base = jax.tree.map(lambda x: x[-cfg.tuned_layers :], encoder.load_numpy()["layers"])
     return jax.tree.map(lambda t, b: (np.asarray(t, np.float32) - b).astype(np.float16), top, base)
 
 
 def with_top(deltas: dict, cfg: HeadConfig) -> dict:
-    """The encoder's weights with its top ``cfg.tuned_layers`` layers replaced by base + ``deltas``."""
+    """The encoder's weights with its top ``cfg.tuned_layers`` layers replaced by base + ``deltas``.
+
+    Merged in numpy from the weights file and put on the device in one transfer (no small compiled ops and no
+    second copy of the frozen encoder on a fresh process's first call)."""
     from jgrounding.semantics import encoder
 
-    params = dict(encoder.load_params())
+    encoder.enable_compilation_cache()
+    params = dict(encoder.load_numpy())
     k = cfg.tuned_layers
-    params["layers"] = jax.tree.map(  # in numpy: no small compiled ops on a fresh process's first call
-        lambda b, d: jnp.asarray(np.concatenate([np.asarray(b)[:-k], np.asarray(b)[-k:] + np.asarray(d, np.float32)])),
-        params["layers"],
-        deltas,
+    params["layers"] = jax.tree.map(
+        lambda b, d: np.concatenate([b[:-k], b[-k:] + np.asarray(d, np.float32)]), params["layers"], deltas
     )
-    return params
+    return jax.device_put(params)
 
 
 def save(path, params: dict, cfg: HeadConfig, meta: dict, top_delta: dict | None = None) -> Path:

@@ -201,6 +201,8 @@ def meta_of(trained: Trained) -> dict:
         "model": dataclasses.asdict(trained.model),
         "sample": dataclasses.asdict(trained.sample_config),
     }
+    if trained.noise_scales:
+        meta["sample"]["noise_scale"] = {str(k): v for k, v in sorted(trained.noise_scales.items())}
     lib = trained.library or {}
     if lib.get("version"):
         meta["library_version"] = lib["version"]
@@ -269,7 +271,12 @@ def restore_trained(path, method: str | None = None, *, allow_library_mismatch: 
         raise ValueError(f"checkpoint {path} has num_tendons {num_tendons!r}, expected an integer in 1..64")
     try:
         model = model_config(meta)
-        sample = SampleConfig(**meta.get("sample", {}))
+        recorded = dict(meta.get("sample", {}))
+        scale = recorded.pop("noise_scale", 1.0)  # one number, or {steps: number} chosen per step count
+        scales = {int(k): float(v) for k, v in scale.items()} if isinstance(scale, dict) else {}
+        sample = SampleConfig(**recorded, noise_scale=1.0 if scales else scale)
+        for v in scales.values():
+            SampleConfig(noise_scale=v)  # ValueError naming the valid range
     except (TypeError, ValueError) as e:
         raise ValueError(f"checkpoint {path}: {e}") from None
     graphdef, params = methods.init(name, tuple(seeds), num_controls, num_tendons, model, abstract=True)
@@ -290,4 +297,5 @@ def restore_trained(path, method: str | None = None, *, allow_library_mismatch: 
         model=model,
         sample_config=sample,
         library=library,
+        noise_scales=scales,
     )

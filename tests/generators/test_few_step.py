@@ -113,3 +113,39 @@ def test_a_sampler_the_few_step_model_lacks_is_served_by_the_default():
     assert u.shape == (150, 4) and jg.safety.is_safe(u)
     assert sampling.TRACES[(str(sampling.DEFAULT_CHECKPOINT), "midpoint", 2, 1)] == 1
     assert jg.sample(key, "greeting", "moderate", steps=2).shape == (150, 4)  # the shipped few-step model
+
+
+def test_noise_scale_is_the_temperature_of_the_initial_noise(monkeypatch):
+    with pytest.raises(ValueError, match=r"noise_scale must be a number in \[0.1, 4.0\]"):
+        SampleConfig(noise_scale=0.0)
+    seen = []
+    jump = few_step.jump_sample
+    monkeypatch.setattr(few_step, "jump_sample", lambda net, eps, *a, **k: seen.append(eps) or jump(net, eps, *a, **k))
+    model = methods.build_model("tuple_spline_meanflow", 4, jax.random.key(0))
+    cond, inten, key = jnp.ones((2, 384)), jnp.array([0, 3]), jax.random.key(5)
+    for scale in (1.0, 1.5):
+        few_step.MeanFlow().sample(model, cond, inten, key, 16, SampleConfig(steps=2, noise_scale=scale))
+    np.testing.assert_allclose(seen[1], 1.5 * seen[0], rtol=1e-6)
+    np.testing.assert_allclose(seen[0], jax.random.normal(key, (2, 16)), rtol=1e-6)
+
+
+def test_a_recorded_noise_scale_applies_to_its_step_counts_through_jg_sample(checkpoint, tmp_path):
+    import json
+    import shutil
+
+    hot = tmp_path / "tuple_spline_shortcut"
+    shutil.copytree(checkpoint, hot)
+    meta = json.loads((hot / "meta.json").read_text())
+    meta.setdefault("sample", {})["noise_scale"] = {"1": 1.5}
+    (hot / "meta.json").write_text(json.dumps(meta))
+    assert sampling.model(hot).temperature(1) == 1.5 and sampling.model(hot).temperature(2) == 1.0
+    key, args = jax.random.key(3), (["greeting", "pointing"], "moderate")
+    base = {s: jg.sample(key, *args, num_samples=4, steps=s, checkpoint=checkpoint, current=None) for s in (1, 2)}
+    hotter = {s: jg.sample(key, *args, num_samples=4, steps=s, checkpoint=hot, current=None) for s in (1, 2)}
+    assert not np.allclose(base[1], hotter[1]) and np.array_equal(base[2], hotter[2])
+    meta["sample"]["noise_scale"] = 9.0
+    bad = tmp_path / "bad" / "tuple_spline_shortcut"
+    shutil.copytree(checkpoint, bad)
+    (bad / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="noise_scale"):
+        sampling.model(bad)

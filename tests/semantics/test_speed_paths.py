@@ -1,0 +1,63 @@
+"""The fast grounding path (#24): bucketed padding, the one-program tuned head, its warm-up."""
+
+import numpy as np
+import pytest
+
+from jgrounding import semantics
+from jgrounding.semantics import embedded, encoder, structure
+from jgrounding.semantics import head as semantic_head
+from jgrounding.vocabulary import INTENSITIES, INTENTS
+
+TEXTS = [
+    "Nod.",
+    "The user looks sad; comfort them gently.",
+    "Rather than waving wildly, just give a small nod to show you heard them.",
+    'She said "give me a hug" to her brother, not to the robot.',
+]
+
+
+@pytest.fixture(scope="module")
+def head():
+    h = semantic_head.load()
+    if h.config.inputs != "tuned":
+        pytest.skip("the shipped head is not the tuned one")
+    return h
+
+
+def test_bucketed_padding_gives_the_full_length_result(head):
+    params = head.encoder_params()
+    structs = [structure.analyse(t) for t in TEXTS]
+    (idx, ids, mask, pools), *_ = list(embedded.encoder_batches(TEXTS[:1], structs[:1]))
+    assert ids.shape == (1, encoder.BUCKETS[0])  # a short text alone runs the shortest bucket
+    for i, text in enumerate(TEXTS):
+        (_, ids, mask, pools), *_ = list(embedded.encoder_batches([text], [structs[i]]))
+        length = ids.shape[1]
+        assert length == encoder.bucket_length(int(mask.sum()))
+        full = encoder.MAX_TOKENS
+        pad = full - length
+        ids_f, mask_f = np.pad(ids, ((0, 0), (0, pad))), np.pad(mask, ((0, 0), (0, pad)))
+        pools_f = np.pad(pools, ((0, 0), (0, 0), (0, pad)))
+        short = np.asarray(encoder.pool_ids(params, ids, mask, pools))
+        long = np.asarray(encoder.pool_ids(params, ids_f, mask_f, pools_f))
+        np.testing.assert_allclose(short, long, atol=1e-5)
+
+
+def test_one_program_equals_the_encoder_then_the_head(head):
+    x = embedded.head_inputs(head, TEXTS)  # the two-step path the head was trained and calibrated with
+    two_step = [np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature)]
+    batched = embedded.predict_tuned_many(head, TEXTS)
+    alone = [embedded.predict_tuned_many(head, [t]) for t in TEXTS]
+    for k in range(3):
+        np.testing.assert_allclose(batched[k], two_step[k], atol=1e-5)
+        np.testing.assert_allclose(np.concatenate([a[k] for a in alone]), two_step[k], atol=1e-5)
+    g = embedded.ground_embedded_many(TEXTS, head=head)
+    m, z, _ = semantic_head.decide(two_step[0], two_step[1])
+    assert [(x.intent, x.intensity) for x in g] == [(INTENTS[a], INTENSITIES[b]) for a, b in zip(m, z)]
+
+
+def test_warmup_compiles_every_bucket_a_text_alone_can_use(head):
+    semantics.warmup(24)
+    before = semantic_head.predict_tuned._cache_size()
+    for text in ["Nod.", "Give them a warm, slow hug now because they are upset and alone."]:
+        semantics.ground(text, escalate=False)
+    assert semantic_head.predict_tuned._cache_size() == before  # nothing traced after the warm-up
