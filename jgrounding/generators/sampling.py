@@ -69,7 +69,7 @@ class Model:
         self.name = name
         self.generator = methods.spec(trained.method).generator
         self.guidance = float(guidance)  # classifier-free guidance w of a model trained with condition dropout
-        # temperature of the initial noise: one number, or {steps: number} (1 for the step counts not listed)
+        # temperature of the initial noise: one number, or {steps: number} (:meth:`temperature`)
         scales = noise_scale if isinstance(noise_scale, dict) else {None: noise_scale}
         self.noise_scale = {None if s is None else int(s): float(v) for s, v in scales.items()}
         for v in self.noise_scale.values():
@@ -119,8 +119,15 @@ class Model:
         return self._programs[cache_key]
 
     def temperature(self, steps: int) -> float:
-        """The initial-noise scale this model samples ``steps`` steps with (its recorded choice, else 1)."""
-        return self.noise_scale.get(steps, self.noise_scale.get(None, 1.0))
+        """The initial-noise scale this model samples ``steps`` steps with: its recorded number, or, recorded
+        per step count, that of the smallest listed S >= ``steps`` (as the shipped routing), beyond the
+        largest that of the largest; 1 when none is recorded."""
+        if None in self.noise_scale:
+            return self.noise_scale[None]
+        listed = sorted(self.noise_scale)
+        if not listed:
+            return 1.0
+        return self.noise_scale[next((s for s in listed if s >= steps), listed[-1])]
 
     def _current(self, current):
         """``(program prefix args, continuity)`` for the robot's current command (validated by the gate)."""
