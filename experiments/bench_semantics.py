@@ -14,7 +14,7 @@ confident wrong motion rate (acted on with the wrong intent, share of motion tex
 texts held (not acted on; the rest are motions where none was asked), intensity exact / within one level, ECE
 (10 bins of the intent confidence against "right intent on a motion text", over all texts) and latency (warm
 median, p99; the first call in a fresh process is timed in a subprocess, with the compilation cache warm and
-cold). A risk-coverage curve (accuracy of the acted-on texts, a no-behaviour text counting as wrong, against the
+cold; where a warm call's time goes, :func:`breakdown`). A risk-coverage curve (accuracy of the acted-on texts, a no-behaviour text counting as wrong, against the
 share acted on, texts ranked by confidence) is saved as ``results/semantics_risk_coverage.png``. Writes
 ``results/bench_semantics.md`` and ``.json`` and the confusion matrix ``results/semantics_confusion.png``.
 """
@@ -129,6 +129,41 @@ def risk_coverage(items: list[dict], preds: list) -> tuple[np.ndarray, np.ndarra
     return k / len(items), np.cumsum(ok[order]) / k
 
 
+def breakdown(texts: list[str]) -> dict:
+    """Where a warm single-text ``jg.ground`` spends its time (the shipped tuned head): preparing the inputs in
+    Python (structure rules, tokenizer, span pools, named actions and degree cues) and the one compiled program
+    (encoder and head), per token bucket. Milliseconds."""
+    from jgrounding.semantics import structure
+
+    head = semantic_head.load()
+    if head.config.inputs != "tuned":
+        return {}
+    enc_params = head.encoder_params()
+    prep, program, buckets = [], [], []
+    for text in texts:
+        t0 = time.perf_counter()
+        st = structure.analyse(text)
+        extras = embedded.tuned_extras(text, st)[None]
+        (_, ids, mask, pools), *_ = list(embedded.encoder_batches([text], [st]))
+        t1 = time.perf_counter()
+        out = semantic_head.predict_tuned(enc_params, head.params, ids, mask, pools, extras, head.temperature)
+        np.asarray(out[0])
+        t2 = time.perf_counter()
+        prep.append(t1 - t0)
+        program.append(t2 - t1)
+        buckets.append(ids.shape[1])
+    prep, program, buckets = np.array(prep) * 1e3, np.array(program) * 1e3, np.array(buckets)
+    return {
+        "prep_ms_median": float(np.median(prep)),
+        "program_ms_median": float(np.median(program)),
+        "program_ms_p99": float(np.percentile(program, 99)),
+        "by_bucket": {
+            int(b): {"n": int((buckets == b).sum()), "program_ms_median": float(np.median(program[buckets == b]))}
+            for b in np.unique(buckets)
+        },
+    }
+
+
 def first_call_seconds(cache: str | None) -> float:
     """The first ``jg.ground`` in a fresh process (import included); ``cache``: a compilation-cache folder."""
     env = dict(os.environ)
@@ -238,6 +273,7 @@ def main(argv=None) -> int:
                 new_preds = preds
         t = np.concatenate(times) * 1e3
         latency[name] = {"ms_median": float(np.median(t)), "ms_p99": float(np.percentile(t, 99)), "n": len(t)}
+    parts = breakdown([it["text"] for split in splits.values() for it in split])
     t0 = time.perf_counter()
     jg.ground_many([it["text"] for it in splits["v2 test"]])
     batched_ms = 1e3 * (time.perf_counter() - t0) / len(splits["v2 test"])
@@ -288,6 +324,19 @@ def main(argv=None) -> int:
         "per response.",
         "",
     ]
+    if parts:
+        lines += [
+            f"Where a warm `jg.ground` of one text goes (same texts, load average {os.getloadavg()[0]:.1f}): "
+            f"{parts['prep_ms_median']:.2f} ms median preparing the inputs in Python (structure rules, tokenizer, "
+            f"span pools, cues), {parts['program_ms_median']:.2f} ms (p99 {parts['program_ms_p99']:.2f}) in the one "
+            "compiled program (the six encoder layers at the text's token bucket, then the head); the rest of the "
+            "warm median is Python around them (checks, caveats, the Grounding). The program by bucket:",
+            "",
+            "| token bucket | texts | program, median ms |",
+            "|---|---|---|",
+            *[f"| {b} | {v['n']} | {v['program_ms_median']:.2f} |" for b, v in parts["by_bucket"].items()],
+            "",
+        ]
     t = res[("new", "v2 test", "all")]
     v2_styles = [k[2] for k in res if k[:2] == ("new", "v2 test") and k[2] != "all"]
     style_intents = {
@@ -346,6 +395,7 @@ def main(argv=None) -> int:
         "load_average": [load[0], os.getloadavg()[0]],
         "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
         "batched_ms_per_response": batched_ms,
+        "breakdown": parts,
         "goals": {g: {"met": bool(ok), "measured": v} for g, ok, v in checks},
         "head": {k: head.meta.get(k) for k in ("selected", "temperature", "threshold", "params_digest")},
         "risk_coverage": {

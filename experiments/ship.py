@@ -7,13 +7,18 @@
 2. Trains its 2-rectified flow into assets/checkpoints/tuple_spline_rf_reflow, and MeanFlow and the shortcut
    model (issue #25; same options and data) into assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
    few-step candidates.
-3. For each step count S in ``--step-counts``, scores every (checkpoint, guidance w) candidate through
-   ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples) on the evaluation
-   set with :mod:`jgrounding.evaluation.distribution`, and picks the one with the best score (the mean of
-   Prec@r, ModeCov, intent and intensity retrieval, among candidates whose multimodality ratio is in
-   0.5-1.5), one guidance per checkpoint (:func:`assign`). The chosen guidance is recorded in each
-   checkpoint; assets/checkpoints/shipped.json says which checkpoint serves which S, with the scores it was
-   chosen on.
+3. For each step count S in ``--step-counts``, scores every (checkpoint, guidance w, noise scale T)
+   candidate through ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples)
+   on the evaluation set with :mod:`jgrounding.evaluation.distribution`, and picks the one with the best
+   score on the *choice half* of the tuples (:func:`halves`): the mean of Prec@r, ModeCov, intent and
+   intensity retrieval among candidates whose multimodality ratio is in 0.8-1.2 (as spread as the
+   demonstrations, within 20 %; outside it a candidate ranks below every one inside), one guidance per
+   checkpoint and one noise scale per (checkpoint, S) (:func:`assign`). T is the temperature of the
+   initial noise (:class:`jgrounding.config.SampleConfig`): the models trained on 4 realizations per
+   tuple sample less spread than the demonstrations at T = 1, a few-step model the least. The chosen
+   guidance and noise scales are recorded in each checkpoint; assets/checkpoints/shipped.json says which
+   checkpoint serves which S with the scores on the *report half* (never used to choose), the choice
+   half and all tuples, and results/ship.md tabulates them.
 
 ``--no-train`` re-runs only the choice on the checkpoints already there; ``--only NAME,...`` trains only those
 checkpoints (e.g. the few-step ones) and then chooses among all. Prints every command it runs.
@@ -37,8 +42,11 @@ CANDIDATES = (DEFAULT, REFLOW, MEANFLOW, SHORTCUT)
 STEPS = 120_000
 OPTIONS = ["--ema-decay", "0.9995", "--condition-dropout", "0.1", "--data", "all"]
 GUIDANCE = (0.0, 0.25, 0.5, 1.0)
+NOISE_SCALES = (0.85, 1.0, 1.15, 1.3, 1.45, 1.6)
 STEP_COUNTS = (1, 2, 4, 8, 50)
 SCORE = ("prec_r", "mode_cov", "intent_ret", "intensity_ret")
+MM_WINDOW = (0.8, 1.2)  # multimodality ratio of an admissible candidate (issue #25's bar)
+RESULTS = Path("results/ship.md")
 
 
 def commands(steps: int, few_step_steps: int | None = None) -> dict[str, list[str]]:
@@ -65,76 +73,201 @@ def _set_guidance(path: Path, w: float) -> None:
     write_atomic(meta_path, json.dumps(meta, indent=1) + "\n")
 
 
-def evaluate(path: Path, w: float, steps: int, k: int = 30) -> dict:
-    """Distribution metrics of ``path`` sampled with guidance ``w`` and ``steps`` through jg.sample."""
+def _set_noise_scale(path: Path, scale) -> None:
+    """Record ``scale`` (one number, or ``{S: number}``) as the checkpoint's initial-noise scale."""
+    meta_path = path / "meta.json"
+    meta = json.loads(meta_path.read_text())
+    meta.setdefault("sample", {})["noise_scale"] = scale
+    write_atomic(meta_path, json.dumps(meta, indent=1) + "\n")
+
+
+def halves(intent, intensity) -> dict[str, np.ndarray]:
+    """The tuples split in two, a checkerboard over (intent, intensity): ``choice`` (intent + intensity even)
+    is what the settings are chosen on, ``report`` the rest, never used to choose. Every intent and every
+    intensity is in both halves (so are the two-variant intents)."""
+    even = (np.asarray(intent) + np.asarray(intensity)) % 2 == 0
+    return {"choice": np.flatnonzero(even), "report": np.flatnonzero(~even), "all": np.arange(len(even))}
+
+
+def evaluate(path: Path, w: float, steps: int, k: int = 30, noise_scale: float = 1.0) -> dict[str, dict] | None:
+    """Distribution metrics of ``path`` sampled with guidance ``w``, initial-noise scale ``noise_scale`` and
+    ``steps`` through jg.sample, on each half of the tuples (:func:`halves`): ``{half: metrics}``; None when
+    the safety gate refuses a sample (non-finite: e.g. a 2-rectified flow at T = 1.3 over 50 steps)."""
     import jax
 
     import jgrounding as jg
     from jgrounding.evaluation import distribution
-    from jgrounding.policy import sampling
+    from jgrounding.generators import sampling
 
     _set_guidance(path, w)
-    sampling.load.cache_clear()  # re-read the recorded guidance
+    _set_noise_scale(path, noise_scale)
+    sampling.load.cache_clear()  # re-read the recorded guidance and noise scale
     lib = jg.load_library()
-    ho = lib.heldout
-    u = jg.sample(jax.random.key(7), list(ho.intent), list(ho.intensity), num_samples=k, steps=steps, checkpoint=path)
-    return distribution.score(u, ho.intent, ho.intensity, lib.evaluation, with_frechet=False).summary()
+    ho, ev = lib.heldout, lib.evaluation
+    try:
+        u = jg.sample(
+            jax.random.key(7), list(ho.intent), list(ho.intensity), num_samples=k, steps=steps, checkpoint=path
+        )
+    except jg.safety.UnsafeActuationError as err:
+        print(f"{path.name} w={w} T={noise_scale} S={steps}: refused by the gate ({err}); not a candidate")
+        return None
+    r = distribution.radius(ev)
+    return {
+        half: distribution.score(u[i], ho.intent[i], ho.intensity[i], ev, r=r, with_frechet=False).summary()
+        for half, i in halves(ho.intent, ho.intensity).items()
+    }
+
+
+def rank(m: dict) -> float:
+    """The choice score: the mean of :data:`SCORE`; below every admissible candidate (MM ratio in
+    :data:`MM_WINDOW`) by 1 plus the distance of the ratio from the window."""
+    quality = float(np.mean([m[k] for k in SCORE]))
+    lo, hi = MM_WINDOW
+    return quality if lo <= m["mm_ratio"] <= hi else quality - 1.0 - max(lo - m["mm_ratio"], m["mm_ratio"] - hi)
 
 
 def assign(table: list[tuple], step_counts=STEP_COUNTS) -> tuple[dict, dict]:
-    """Which (checkpoint, guidance) serves each S, with one guidance per checkpoint (it is recorded there).
+    """Which (checkpoint, guidance, noise scale) serves each S, with one guidance per checkpoint (it is
+    recorded there; the noise scale is recorded per S).
 
-    ``table``: ``(S, checkpoint, w, metrics, score)`` rows. The default serves the largest S with its best w
-    (and every S beyond the listed ones). Then, for the smaller S in ascending order (the few-step settings
-    first), the best-scoring row wins among the default at its fixed w and the other checkpoints at any w
-    not yet fixed by a smaller S; the winner's w is then fixed. Returns ``({S: (checkpoint, w, metrics)},
-    {checkpoint: w})``; a checkpoint that serves no S keeps its best w at the smallest S.
+    ``table``: ``(S, checkpoint, w, T, metrics, score)`` rows. The default serves the largest S with its best
+    (w, T) (and every S beyond the listed ones). Then, for the smaller S in ascending order (the few-step
+    settings first), the best-scoring row wins among the default at its fixed w and the other checkpoints
+    at any w not yet fixed by a smaller S; the winner's w is then fixed. Returns ``({S: (checkpoint, w, T,
+    metrics)}, {checkpoint: w})``; a checkpoint that serves no S keeps its best w at the smallest S.
     """
-    rows = {(s, n, w): (m, sc) for s, n, w, m, sc in table}
     top = max(step_counts)
-    fixed = {DEFAULT: max((r for r in table if r[0] == top and r[1] == DEFAULT), key=lambda r: r[4])[2]}
-    served = {top: (DEFAULT, fixed[DEFAULT], rows[(top, DEFAULT, fixed[DEFAULT])][0])}
+    best = max((r for r in table if r[0] == top and r[1] == DEFAULT), key=lambda r: r[5])
+    fixed = {DEFAULT: best[2]}
+    served = {top: (DEFAULT, best[2], best[3], best[4])}
     for s in sorted(step_counts)[:-1]:
         cands = [r for r in table if r[0] == s and fixed.get(r[1], r[2]) == r[2]]
-        _, name, w, m, _ = max(cands, key=lambda r: r[4])
+        _, name, w, t, m, _ = max(cands, key=lambda r: r[5])
         fixed[name] = w
-        served[s] = (name, w, m)
-    for _, name, w, _, _ in sorted(table, key=lambda r: (r[0], -r[4])):
+        served[s] = (name, w, t, m)
+    for _, name, w, *_ in sorted(table, key=lambda r: (r[0], -r[5])):
         fixed.setdefault(name, w)  # never chosen: its best w at the smallest S
     return served, fixed
 
 
-def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE) -> dict:
-    table = []
+def _metrics(m: dict) -> dict:
+    return {k: round(v, 4) for k, v in m.items()}
+
+
+def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE, noise_scales=NOISE_SCALES) -> dict:
+    """Score every candidate (on scratch copies of the checkpoints, so that a concurrent ``jg.sample`` never
+    sees a setting under trial), assign the winners and record their settings in the shipped checkpoints."""
+    import shutil
+    import tempfile
+
+    table, halves_of = [], {}
+    names = [n for n in CANDIDATES if (CKPT / n / "meta.json").exists()]
+    scratch = Path(tempfile.mkdtemp(prefix="ship-"))
+    for name in names:
+        shutil.copytree(CKPT / name, scratch / name)
     for s in step_counts:
-        for name in (n for n in CANDIDATES if (CKPT / n / "meta.json").exists()):
+        for name in names:
             for w in guidance:
-                m = evaluate(CKPT / name, w, s)
-                ok = 0.5 <= m["mm_ratio"] <= 1.5
-                score = float(np.mean([m[k] for k in SCORE])) if ok else -1.0
-                table.append((s, name, w, m, score))
-                print(
-                    f"S={s:3d} {name:24s} w={w:.2f}: "
-                    + ", ".join(f"{k} {m[k]:.3f}" for k in (*SCORE, "between", "mm_ratio"))
-                    + f" -> score {score:.3f}",
-                    flush=True,
-                )
+                for t in noise_scales:
+                    by_half = evaluate(scratch / name, w, s, noise_scale=t)
+                    if by_half is None:
+                        continue
+                    m = by_half["choice"]
+                    score = rank(m)
+                    table.append((s, name, w, t, m, score))
+                    halves_of[(s, name, w, t)] = by_half
+                    print(
+                        f"S={s:3d} {name:24s} w={w:.2f} T={t:.2f} (choice half): "
+                        + ", ".join(f"{k} {m[k]:.3f}" for k in (*SCORE, "between", "mm_ratio"))
+                        + f" -> score {score:.3f}",
+                        flush=True,
+                    )
+    shutil.rmtree(scratch)
     served, fixed = assign(table, step_counts)
     for name, w in fixed.items():
         _set_guidance(CKPT / name, w)
-    manifest = {"default": DEFAULT, "few_step": [], "chosen_by": "python -m experiments.ship", "scores": {}}
+        # every S it serves (a step count between two listed ones takes the next listed one's, as the routing)
+        scales = {str(s): t for s, (n, _, t, _) in sorted(served.items()) if n == name}
+        _set_noise_scale(CKPT / name, scales)
+    manifest = {
+        "default": DEFAULT,
+        "few_step": [],
+        "chosen_by": "python -m experiments.ship",
+        "halves": "choice: tuples with intent + intensity even (the settings are chosen there); report: the rest",
+        "scores": {},
+    }
     for s in sorted(served):
-        name, w, m = served[s]
-        manifest["scores"][str(s)] = {"checkpoint": name, "guidance": w, **{k: round(v, 4) for k, v in m.items()}}
-    # S' routes to the smallest listed max_steps >= S' (jgrounding.policy.sampling.shipped_checkpoint),
+        name, w, t, _ = served[s]
+        by_half = halves_of[(s, name, w, t)]
+        manifest["scores"][str(s)] = {
+            "checkpoint": name,
+            "guidance": w,
+            "noise_scale": t,
+            **_metrics(by_half["report"]),
+            "choice_half": _metrics(by_half["choice"]),
+            "all_tuples": _metrics(by_half["all"]),
+        }
+    # S' routes to the smallest listed max_steps >= S' (jgrounding.generators.sampling.shipped_checkpoint),
     # beyond the largest to the default; so every S below the largest is listed with its winner.
     if any(served[s][0] != DEFAULT for s in served):
         manifest["few_step"] = [{"max_steps": s, "checkpoint": served[s][0]} for s in sorted(served)[:-1]]
     manifest["candidates"] = [
-        {"steps": s, "checkpoint": n, "guidance": w, "score": round(sc, 4), **{k: round(v, 4) for k, v in m.items()}}
-        for s, n, w, m, sc in table
+        {
+            "steps": s,
+            "checkpoint": n,
+            "guidance": w,
+            "noise_scale": t,
+            "score": round(sc, 4),
+            **_metrics(m),
+            "report_half": _metrics(halves_of[(s, n, w, t)]["report"]),
+        }
+        for s, n, w, t, m, sc in table
     ]
     return manifest
+
+
+def report(manifest: dict) -> str:
+    """results/ship.md: what serves each S, scored on the report half, against S = 50 and issue #25's bar."""
+    cols = ("prec_r", "mode_cov", "mm_ratio", "intent_ret", "intensity_ret", "between")
+    names = {"prec_r": "Prec@r", "mode_cov": "ModeCov", "mm_ratio": "MM ratio", "intent_ret": "Intent ret."}
+    names |= {"intensity_ret": "Intensity ret.", "between": "Between"}
+    scores = manifest["scores"]
+    top = scores[str(max(int(s) for s in scores))]
+    lines = [
+        "What `jg.sample` serves for each step count (`python -m experiments.ship`; "
+        "assets/checkpoints/shipped.json), through `jg.sample` itself (default `current`, K = 30 samples per "
+        "tuple). Guidance w and noise scale T (temperature of the initial noise) are chosen on the *choice "
+        "half* of the 64 tuples (intent + intensity even): best mean of Prec@r, ModeCov, intent and intensity "
+        f"retrieval with the MM ratio in {MM_WINDOW[0]}-{MM_WINDOW[1]}; the table scores the other half "
+        "(never used to choose).",
+        "",
+        "| S | checkpoint | w | T | " + " | ".join(names[c] for c in cols) + " | meets #25 |",
+        "|---|---|---|---|" + "---|" * len(cols) + "---|",
+    ]
+    for s in sorted(scores, key=int):
+        m = scores[s]
+        ok = (
+            top["prec_r"] - m["prec_r"] <= 0.02
+            and top["mode_cov"] - m["mode_cov"] <= 0.02
+            and MM_WINDOW[0] <= m["mm_ratio"] <= MM_WINDOW[1]
+            and m["intensity_ret"] >= 0.95
+        )
+        lines.append(
+            f"| {s} | {m['checkpoint'].removeprefix('tuple_spline_')} | {m['guidance']:g} | {m['noise_scale']:g} | "
+            + " | ".join(f"{m[c]:.3f}" for c in cols)
+            + f" | {'yes' if ok else 'no'} |"
+        )
+    lines += [
+        "",
+        "Meets #25: within 0.02 of S = 50 on Prec@r and ModeCov, MM ratio in 0.8-1.2, intensity retrieval "
+        ">= 0.95 (all on the report half). On all 64 tuples: "
+        + "; ".join(
+            f"S = {s}: Prec@r {m['all_tuples']['prec_r']:.3f}, MM {m['all_tuples']['mm_ratio']:.3f}"
+            for s, m in sorted(scores.items(), key=lambda x: int(x[0]))
+        )
+        + ".",
+    ]
+    return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> int:
@@ -159,6 +292,8 @@ def main(argv=None) -> int:
     manifest = choose()
     print(json.dumps({k: v for k, v in manifest.items() if k != "candidates"}, indent=1))
     write_atomic(CKPT / "shipped.json", json.dumps(manifest, indent=1) + "\n")
+    write_atomic(RESULTS, report(manifest))
+    print(RESULTS.read_text())
     return 0
 
 

@@ -1,4 +1,7 @@
-"""experiments.ship: each step count is served by its best (checkpoint, guidance), one guidance per checkpoint."""
+"""experiments.ship: each step count is served by its best (checkpoint, guidance, noise scale), one guidance per
+checkpoint, chosen on one half of the tuples and reported on the other."""
+
+import numpy as np
 
 from experiments import ship
 
@@ -6,21 +9,45 @@ RF, MF, SC = ship.DEFAULT, ship.MEANFLOW, ship.SHORTCUT
 
 
 def test_each_s_gets_its_winner_with_one_guidance_per_checkpoint():
-    scores = {  # (S, checkpoint, w) -> score
-        (50, RF, 0.0): 0.90,
-        (50, RF, 0.5): 0.95,
-        (50, MF, 0.0): 0.99,  # the default serves the largest S
-        (1, RF, 0.5): 0.2,
-        (1, RF, 0.0): 0.5,
-        (1, MF, 0.0): 0.8,
-        (1, MF, 0.5): 0.3,
-        (1, SC, 1.0): 0.1,
-        (2, RF, 0.5): 0.85,
-        (2, MF, 0.0): 0.8,
-        (2, MF, 0.5): 0.9,  # MF is fixed at w = 0 by S = 1: RF wins
+    scores = {  # (S, checkpoint, w, T) -> score
+        (50, RF, 0.0, 1.0): 0.90,
+        (50, RF, 0.5, 1.15): 0.95,
+        (50, MF, 0.0, 1.0): 0.99,  # the default serves the largest S
+        (1, RF, 0.5, 1.0): 0.2,
+        (1, RF, 0.0, 1.0): 0.5,
+        (1, MF, 0.0, 1.0): 0.8,
+        (1, MF, 0.5, 1.0): 0.3,
+        (1, SC, 1.0, 1.0): 0.1,
+        (2, RF, 0.5, 1.0): 0.85,
+        (2, MF, 0.0, 1.3): 0.8,  # MF at its fixed w = 0, at another noise scale than at S = 1
+        (2, MF, 0.5, 1.0): 0.9,  # MF is fixed at w = 0 by S = 1: RF wins
+        (4, MF, 0.0, 1.45): 0.9,  # the noise scale is free per S
+        (4, RF, 0.5, 1.0): 0.88,
     }
-    table = [(s, n, w, {"score": sc}, sc) for (s, n, w), sc in scores.items()]
-    served, fixed = ship.assign(table, (1, 2, 50))
-    assert {s: v[:2] for s, v in served.items()} == {50: (RF, 0.5), 1: (MF, 0.0), 2: (RF, 0.5)}
-    assert served[1][2] == {"score": 0.8}
+    table = [(s, n, w, t, {"score": sc}, sc) for (s, n, w, t), sc in scores.items()]
+    served, fixed = ship.assign(table, (1, 2, 4, 50))
+    assert {s: v[:3] for s, v in served.items()} == {
+        50: (RF, 0.5, 1.15),
+        1: (MF, 0.0, 1.0),
+        2: (RF, 0.5, 1.0),
+        4: (MF, 0.0, 1.45),
+    }
+    assert served[1][3] == {"score": 0.8}
     assert fixed == {RF: 0.5, MF: 0.0, SC: 1.0}  # SC serves nothing: its best w at the smallest S
+
+
+def test_a_candidate_outside_the_mm_window_ranks_below_every_one_inside():
+    inside = {"prec_r": 0.5, "mode_cov": 0.5, "intent_ret": 0.5, "intensity_ret": 0.5, "mm_ratio": 1.19}
+    precise_but_collapsed = {**inside, "prec_r": 1.0, "mode_cov": 1.0, "mm_ratio": 0.79}
+    assert ship.rank(inside) == 0.5 > ship.rank(precise_but_collapsed)
+    # outside, the nearer to the window ranks higher
+    assert ship.rank({**precise_but_collapsed, "mm_ratio": 0.7}) < ship.rank(precise_but_collapsed)
+
+
+def test_the_halves_split_every_intent_and_intensity():
+    intent, intensity = np.repeat(np.arange(16), 4), np.tile(np.arange(4), 16)
+    h = ship.halves(intent, intensity)
+    assert len(h["choice"]) == len(h["report"]) == 32 and not set(h["choice"]) & set(h["report"])
+    for half in ("choice", "report"):
+        assert set(intent[h[half]]) == set(range(16)) and set(intensity[h[half]]) == set(range(4))
+    assert h["all"].tolist() == list(range(64))

@@ -9,7 +9,8 @@ one; all disjoint from the evaluation sets). Rows with intent ``"none"`` teach t
 
 Options (:data:`OPTIONS`) are compared on the dev splits: ``assets/semantics_eval_v2/dev.jsonl`` (the styles
 real reasoners write, with no-behaviour texts) and ``assets/semantics_eval/dev.jsonl`` (plainly worded). Each
-option's softmax temperature is fitted on v2 dev (NLL over the 17 classes), then its confidence threshold:
+option's softmax temperature is fitted on v2 dev (NLL over the 17 classes), so are its intensity cut points (NLL of
+the motion texts' intensities, :func:`fit_cut_points`), then its confidence threshold:
 the lowest at which the confident wrong motions on v2 dev (acted on with the wrong intent, or acted on a
 no-behaviour text) stay within ``TARGET_WRONG``. The option with the best dev score (:func:`dev_score`) is
 shipped. The test splits are never read here. Deterministic: fixed keys and seeded minibatch order. Frozen encoder
@@ -44,7 +45,7 @@ TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test 
 # rejected and quoted parts pooled apart from one encoder pass, Eq. (3) cues of the chosen part, structure flags).
 # Rows weigh by their file: the generated corpus less (templated), the structure corpus (the styles real
 # reasoners write, and the no-behaviour kinds) more; each intent and "none" then weighs the same in total.
-FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0}
+FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0}
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),
     "structure": dict(inputs="structure", hidden=128, steps=400),
@@ -175,6 +176,27 @@ def calibrate_threshold(p_m, p_z, rows, target=TARGET_WRONG) -> float:
         if selective(p_m, p_z, rows, t)["confident_wrong"] <= target:
             return float(t)
     return 0.975
+
+
+def fit_cut_points(params, x, rows, grid=np.arange(-1.5, 1.501, 0.25)) -> tuple[np.ndarray, np.ndarray]:
+    """The ordinal intensity's cut points fitted on dev, as temperature is for the intent: the trained cut points
+    shifted (each by a value of ``grid``, kept increasing) to minimise the NLL of the intensities of ``rows``' motion
+    texts. The intensity score itself is unchanged. Returns (fitted cut points ``(3,)``, shifts ``(3,)``)."""
+    import itertools
+
+    _, z = labels(rows)
+    keep = z >= 0
+    s, z = np.asarray(sh.intensity_score(params, x), np.float64)[keep], z[keep]
+    theta = np.asarray(sh.thresholds(params), np.float64)
+    best, shift = np.inf, np.zeros(3)
+    for d in itertools.product(grid, repeat=3):  # the zero shift is on the grid: ties keep the trained points
+        t = theta + np.array(d)
+        if np.any(np.diff(t) <= 0.05):
+            continue
+        nll = -np.mean(sh.ordinal_log_probs(s, t, xp=np)[np.arange(len(z)), z])
+        if nll < best - 1e-9:
+            best, shift = nll, np.array(d)
+    return theta + shift, shift
 
 
 def dev_score(r: dict, plain: dict) -> float:
@@ -330,6 +352,7 @@ def main(argv=None) -> int:
     p.add_argument("--dev", default=str(DEV))
     p.add_argument("--dev-plain", default=str(DEV_PLAIN))
     p.add_argument("--out", default=str(sh.ASSET))
+    p.add_argument("--train-dir", default=str(TRAIN_DIR), help="folder of the training *.jsonl files")
     p.add_argument("--options", default=",".join(OPTIONS), help=f"options to compare ({', '.join(OPTIONS)})")
     p.add_argument("--report", default=str(ROOT / "results" / "semantics_dev_options.json"))
     args = p.parse_args(argv)
@@ -337,7 +360,7 @@ def main(argv=None) -> int:
     bad = [o for o in chosen if o not in OPTIONS]
     if bad:
         raise SystemExit(f"unknown option(s) {bad}; valid options: {', '.join(OPTIONS)}")
-    rows, row_weight = load_train()
+    rows, row_weight = load_train(args.train_dir)
     dev = read_jsonl(args.dev) if Path(args.dev).exists() else []
     plain = read_jsonl(args.dev_plain)
     if not dev:
@@ -347,9 +370,10 @@ def main(argv=None) -> int:
     print(f"train: {len(rows)} rows; dev: {len(dev)} + plain {len(plain)} rows; file weights {FILE_WEIGHTS}")
     print(f"no-behaviour reasons: {reasons}")
     texts = [r["text"] for r in rows]
-    xs = cached_structure_features(texts)
-    xs_dev = cached_structure_features([r["text"] for r in dev])
-    xs_plain = cached_structure_features([r["text"] for r in plain])
+    if any(OPTIONS[o]["inputs"] != "tuned" for o in chosen):  # the frozen encoder's features (cached)
+        xs = cached_structure_features(texts)
+        xs_dev = cached_structure_features([r["text"] for r in dev])
+        xs_plain = cached_structure_features([r["text"] for r in plain])
     dev_intent, _ = labels(dev)
     results = {}
     for name in chosen:
@@ -365,6 +389,9 @@ def main(argv=None) -> int:
             xd = inputs(opt["inputs"], xs_dev, [r["text"] for r in dev])
             xp = inputs(opt["inputs"], xs_plain, [r["text"] for r in plain])
             params, cfg = fit(inputs(opt["inputs"], xs, texts), rows, row_weight, reasons=reasons, **opt)
+        trained_cuts = np.asarray(sh.thresholds(params), np.float64)
+        cuts, shifts = fit_cut_points(params, xd, dev)
+        params = sh.with_cut_points(params, cuts)
         temperature = sh.fit_temperature(lambda t: _probs(params, xd, t)[0], dev_intent)
         pm, pz = _probs(params, xd, temperature)
         threshold = calibrate_threshold(pm, pz, dev)
@@ -374,6 +401,7 @@ def main(argv=None) -> int:
         results[name] = dict(
             option=opt,
             temperature=temperature,
+            cut_points={"trained": trained_cuts.round(4).tolist(), "fitted on dev": cuts.round(4).tolist()},
             threshold=threshold,
             dev=r,
             dev_plain=rp,
@@ -386,19 +414,22 @@ def main(argv=None) -> int:
         print(
             f"  {name:15s} score {score:.3f} | v2 dev: intent {r['intent_motion']:.3f} exact {r['intensity_exact']:.3f}"
             f" within1 {r['intensity_within_one']:.3f} acted {r['coverage_motion']:.3f} wrong {r['confident_wrong']:.3f}"
-            f" held {r['none_held']:.3f} ECE {r['ece']:.3f} (T {temperature:.2f}, thr {threshold:.3f})"
+            f" held {r['none_held']:.3f} ECE {r['ece']:.3f} (T {temperature:.2f}, thr {threshold:.3f},"
+            f" cut point shifts {shifts.tolist()})"
             f" | plain dev intent {rp['intent_motion']:.3f}",
             flush=True,
         )
     best = max(results, key=lambda k: results[k]["score"])  # first of equals: the options' order breaks ties
     b = results[best]
     digests = {
-        path.name: hashlib.sha256(path.read_bytes()).hexdigest()[:16] for path in sorted(TRAIN_DIR.glob("*.jsonl"))
+        path.name: hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        for path in sorted(Path(args.train_dir).glob("*.jsonl"))
     }
     comparison = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in results.items()}
     meta = {
         "temperature": b["temperature"],
         "threshold": b["threshold"],
+        "cut_points": b["cut_points"],
         "selected": best,
         "option": b["option"],
         "reasons": reasons,

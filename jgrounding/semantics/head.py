@@ -108,14 +108,35 @@ def thresholds(params: dict):
     return params["z_theta0"] + jnp.concatenate([jnp.zeros(1), jnp.cumsum(jax.nn.softplus(params["z_gaps"]))])
 
 
-def intensity_log_probs(params: dict, x):
-    """Args: x ``(N, F)``. Returns ``(N, 4)`` log p(z | r) of the cumulative-link model."""
+def intensity_score(params: dict, x):
+    """Args: x ``(N, F)``. Returns the ordinal intensity score s ``(N,)`` (P(z > k) = sigmoid(s - theta_k))."""
     if "z_w1" in params:
         x = jax.nn.gelu(x @ params["z_w1"] + params["z_b1"])
-    s = (x @ params["z_w"])[:, 0] + params["z_b"]
-    above = jax.nn.sigmoid(s[:, None] - thresholds(params)[None])  # P(z > k), (N, 3), decreasing in k
-    cdf = jnp.concatenate([jnp.ones_like(s)[:, None], above, jnp.zeros_like(s)[:, None]], axis=1)
-    return jnp.log(jnp.clip(cdf[:, :-1] - cdf[:, 1:], 1e-7, 1.0))
+    return (x @ params["z_w"])[:, 0] + params["z_b"]
+
+
+def ordinal_log_probs(s, theta, xp=jnp):
+    """log p(z) ``(N, 4)`` of the cumulative-link model from scores s ``(N,)`` and cut points theta ``(3,)``;
+    ``xp``: ``jax.numpy`` or ``numpy``."""
+    sigmoid = jax.nn.sigmoid if xp is jnp else (lambda v: 1.0 / (1.0 + np.exp(-v)))
+    above = sigmoid(s[:, None] - theta[None])  # P(z > k), (N, 3), decreasing in k
+    cdf = xp.concatenate([xp.ones_like(s)[:, None], above, xp.zeros_like(s)[:, None]], axis=1)
+    return xp.log(xp.clip(cdf[:, :-1] - cdf[:, 1:], 1e-7, 1.0))
+
+
+def intensity_log_probs(params: dict, x):
+    """Args: x ``(N, F)``. Returns ``(N, 4)`` log p(z | r) of the cumulative-link model."""
+    return ordinal_log_probs(intensity_score(params, x), thresholds(params))
+
+
+def with_cut_points(params: dict, theta) -> dict:
+    """``params`` with the ordinal intensity cut points set to ``theta`` ``(3,)``, strictly increasing (a single
+    head; stored as theta0 and the softplus-inverse of the gaps, as :func:`thresholds` reads them)."""
+    theta = np.asarray(theta, np.float64)
+    gaps = np.diff(theta)
+    if theta.shape != (3,) or np.any(gaps <= 0):
+        raise ValueError(f"cut points must be 3 strictly increasing values, got {theta.tolist()}")
+    return dict(params, z_theta0=jnp.float32(theta[0]), z_gaps=jnp.asarray(np.log(np.expm1(gaps)), jnp.float32))
 
 
 def loss(params: dict, key, x, intent, intensity, weight, dropout: float = 0.0, why=None, why_weight: float = 0.0):

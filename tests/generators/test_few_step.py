@@ -136,9 +136,10 @@ def test_a_recorded_noise_scale_applies_to_its_step_counts_through_jg_sample(che
     hot = tmp_path / "tuple_spline_shortcut"
     shutil.copytree(checkpoint, hot)
     meta = json.loads((hot / "meta.json").read_text())
-    meta.setdefault("sample", {})["noise_scale"] = {"1": 1.5}
+    meta.setdefault("sample", {})["noise_scale"] = {"1": 1.5, "4": 1.0}
     (hot / "meta.json").write_text(json.dumps(meta))
-    assert sampling.model(hot).temperature(1) == 1.5 and sampling.model(hot).temperature(2) == 1.0
+    # a step count not listed takes the scale of the smallest listed S above it, beyond the largest the largest's
+    assert [sampling.model(hot).temperature(s) for s in (1, 2, 3, 4, 50)] == [1.5, 1.0, 1.0, 1.0, 1.0]
     key, args = jax.random.key(3), (["greeting", "pointing"], "moderate")
     base = {s: jg.sample(key, *args, num_samples=4, steps=s, checkpoint=checkpoint, current=None) for s in (1, 2)}
     hotter = {s: jg.sample(key, *args, num_samples=4, steps=s, checkpoint=hot, current=None) for s in (1, 2)}

@@ -86,3 +86,36 @@ def test_low_confidence_escalates_to_a_configured_mllm():
     assert low.backend == "mllm (escalated)" and "escalated" in low.reason and low.intent == "resting"
     assert high.backend == "embedded" and high.confident and kept.backend == "embedded"
     assert len(s.requests) == 1  # only the low-confidence text was asked
+
+
+def test_cut_points_set_on_a_head_are_the_ones_it_reads():
+    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, use_eq3=False))
+    moved = sh.with_cut_points(params, [-1.0, 0.5, 2.5])
+    np.testing.assert_allclose(np.asarray(sh.thresholds(moved)), [-1.0, 0.5, 2.5], atol=1e-5)
+    x = jax.random.normal(jax.random.key(1), (4, sh.EMBED_DIM))
+    s = sh.intensity_score(moved, x)  # the numpy form of the ordinal model equals the jax one
+    np.testing.assert_allclose(
+        sh.ordinal_log_probs(np.asarray(s, np.float64), np.array([-1.0, 0.5, 2.5]), xp=np),
+        np.asarray(sh.intensity_log_probs(moved, x)),
+        atol=1e-5,
+    )
+    with pytest.raises(ValueError, match="strictly increasing"):
+        sh.with_cut_points(params, [0.0, 0.0, 1.0])
+
+
+def test_cut_points_fitted_on_dev_move_toward_the_labels():
+    from tools import train_semantics as ts
+
+    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, use_eq3=False))
+    x = jax.random.normal(jax.random.key(2), (400, sh.EMBED_DIM))
+    s = np.asarray(sh.intensity_score(params, x), np.float64)
+    theta = np.asarray(sh.thresholds(params), np.float64)
+    # Labels drawn from cut points 0.75 higher than the trained ones: every level is reached later.
+    rng = np.random.default_rng(0)
+    p = np.exp(sh.ordinal_log_probs(s, theta + 0.75, xp=np))
+    z = np.array([rng.choice(4, p=row / row.sum()) for row in p])
+    rows = [{"intent": "nodding", "intensity": jg.INTENSITIES[k]} for k in z]
+    rows.append({"intent": "none", "intensity": None})  # no-behaviour rows carry no intensity: skipped
+    cuts, shift = ts.fit_cut_points(params, np.concatenate([np.asarray(x), np.zeros((1, sh.EMBED_DIM))]), rows)
+    assert np.all(shift > 0) and np.all(np.abs(shift - 0.75) <= 0.5)
+    np.testing.assert_allclose(cuts, theta + shift)
