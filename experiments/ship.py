@@ -97,7 +97,7 @@ def evaluate(path: Path, w: float, steps: int, k: int = 30, noise_scale: float =
 
     import jgrounding as jg
     from jgrounding.evaluation import distribution
-    from jgrounding.generators import sampling
+    from jgrounding.policy import sampling
 
     _set_guidance(path, w)
     _set_noise_scale(path, noise_scale)
@@ -207,7 +207,7 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE, noise_scales=NOISE_SCALES
             "choice_half": _metrics(by_half["choice"]),
             "all_tuples": _metrics(by_half["all"]),
         }
-    # S' routes to the smallest listed max_steps >= S' (jgrounding.generators.sampling.shipped_checkpoint),
+    # S' routes to the smallest listed max_steps >= S' (jgrounding.policy.sampling.shipped_checkpoint),
     # beyond the largest to the default; so every S below the largest is listed with its winner.
     if any(served[s][0] != DEFAULT for s in served):
         manifest["few_step"] = [{"max_steps": s, "checkpoint": served[s][0]} for s in sorted(served)[:-1]]
