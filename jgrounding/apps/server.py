@@ -38,6 +38,7 @@ import msgpack
 import numpy as np
 
 from jgrounding import safety
+from jgrounding.config import NUM_STEPS, SampleConfig
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 log = logging.getLogger("jgrounding.serve")
@@ -586,7 +587,7 @@ def glide_to_rest(start: np.ndarray, ticks: int = GLIDE_TICKS) -> np.ndarray:
     return safety.emit(w[:, None] * start[None], num_channels=len(start), current=start)
 
 
-def hold(start: np.ndarray, ticks: int = 150) -> np.ndarray:
+def hold(start: np.ndarray, ticks: int = NUM_STEPS) -> np.ndarray:
     return safety.emit(np.broadcast_to(start, (ticks, len(start))), num_channels=len(start), current=start)
 
 
@@ -649,7 +650,7 @@ class Stream:
     non-confident grounding holds the command being executed; ``stop`` glides to rest and ends.
     """
 
-    def __init__(self, conn: _Connection, stall_s: float, sim: bool = False, steps: int = 50):
+    def __init__(self, conn: _Connection, stall_s: float, sim: bool = False, steps: int = SampleConfig.steps):
         self.conn, self.policy = conn, conn.server.policy
         n = self.policy.num_tendons
         self.tick = 0

@@ -101,7 +101,13 @@ def guided(model, ctx, w: float):
 
 
 def rf_sample(
-    velocity, eps, steps: int = 50, sampler: str = "euler", embed_time=None, known=None, inpaint: str = "final"
+    velocity,
+    eps,
+    steps: int = SampleConfig.steps,
+    sampler: str = RF_SAMPLERS[0],
+    embed_time=None,
+    known=None,
+    inpaint: str = "final",
 ):
     """Eq. (rf_inference): integrate dc/dlambda = v from lambda = 0 (noise ``eps``) to 1 in ``steps``.
 

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
-from jgrounding.config import ModelConfig
+from jgrounding.config import NUM_TENDONS, ModelConfig
 from jgrounding.vocabulary import INTENSITIES
 
 
@@ -119,7 +119,7 @@ class CNNRegressor(nnx.Module):
         length: int,
         use_intensity: bool = True,
         channels: int = 64,
-        num_tendons: int = 4,
+        num_tendons: int = NUM_TENDONS,
         config: ModelConfig = ModelConfig(),
         *,
         rngs: nnx.Rngs,

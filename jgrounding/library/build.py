@@ -26,6 +26,7 @@ import numpy as np
 
 from jgrounding import safety
 from jgrounding.actuation import splines
+from jgrounding.config import NUM_CONTROLS
 from jgrounding.library import primitives, responses, screening
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
@@ -42,7 +43,7 @@ REGENERATE = "python -m tools.build_library"
 class BuildConfig:
     seed: int = 0
     realizations: int = 4
-    num_controls: int = 4
+    num_controls: int = NUM_CONTROLS
     candidates_per_round: int = 8
     max_rounds: int = 12
     texts_per_record: int = 3

@@ -330,7 +330,7 @@ def sample(
     num_samples: int = 1,
     *,
     sampler: str | None = None,
-    steps: int = 50,
+    steps: int = SampleConfig.steps,
     checkpoint: str | Path | None = None,
     current=safety.REST,
     start_conditioned: bool = False,

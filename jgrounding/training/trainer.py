@@ -107,7 +107,7 @@ def reflow(
     *,
     intent_emb=None,
     pairs_per_example: int = 64,
-    teacher_steps: int = 50,
+    teacher_steps: int = SampleConfig.steps,
     teacher_guidance: float = 0.0,
     progress: bool = True,
 ) -> Trained:
