@@ -1,9 +1,10 @@
 """Does a re-run give the same numbers? ``python -m experiments.reproducibility [--steps N] [--seeds 0,1]``.
 
 Trains the methods whose Table II numbers moved between two clones (the dense CNNs) and the RF, each in a fresh
-process under three settings: the default twice (the same machine and threads: run-to-run), and XLA's CPU
-backend on one thread (``--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``: another thread
-count, as on another machine). Every run prints a digest of its trained parameters and the paper-protocol
+process under four settings: the default twice (the same machine and threads: run-to-run), XLA's CPU backend
+on one thread (``--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``: another thread count),
+and XLA told to emit AVX2 code only (``--xla_cpu_max_isa=AVX2``: what a CPU without AVX-512 runs, as the
+machine that re-ran ``make ablation`` in issue #22). Every run prints a digest of its trained parameters and the paper-protocol
 success of its samples; the script reports which runs agree bit for bit and the spread of the success between
 settings. Writes results/reproducibility.{md,json}.
 """
@@ -25,7 +26,13 @@ from jgrounding.io import write_atomic
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_rf")
 SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-SETTINGS = (("default", ""), ("default, again", ""), ("one XLA CPU thread", SINGLE_THREAD))
+AVX2 = "--xla_cpu_max_isa=AVX2"  # the code XLA emits for a CPU without AVX-512 (e.g. the 2-core EPYC of issue #22)
+SETTINGS = (
+    ("default", ""),
+    ("default, again", ""),
+    ("one XLA CPU thread", SINGLE_THREAD),
+    ("AVX2 code (no AVX-512)", AVX2),
+)
 
 WORKER = r"""
 import hashlib, json, sys
@@ -70,7 +77,7 @@ def run_one(method: str, steps: int, seeds: str, xla_flags: str) -> dict:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--steps", type=int, default=2000, help="training steps per run (Table I: 10,000)")
+    p.add_argument("--steps", type=int, default=10_000, help="training steps per run (Table I)")
     p.add_argument("--seeds", default="0,1", help="comma-separated seeds trained together (vmap)")
     p.add_argument("--out", default="results")
     args = p.parse_args(argv)

@@ -115,6 +115,7 @@ def main(argv=None) -> int:
         "library_sha256": library.file_hash(lib.path),
         "library_version": lib.meta.get("library_version", "1 (unversioned)"),
         "data": args.data,
+        "run_config": configs.to_dict(full),  # the whole composed config (named entry + overrides)
     }
     if args.library:  # the shipped library's checkpoints keep their old metadata
         meta.update(

@@ -46,6 +46,7 @@ def _env() -> dict:
 def _final_params(out: Path):
     _, template = methods.init("tuple_spline_rf", (0,), 4)
     params, meta = checkpoints.restore(out, template, expect={"method": "tuple_spline_rf", "step": STEPS})
+    assert meta["run_config"]["train"]["steps"] == STEPS and meta["run_config"]["train"]["chunk"] == CHUNK
     return [np.asarray(x) for x in __import__("jax").tree.leaves(params)]
 
 
