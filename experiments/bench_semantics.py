@@ -164,6 +164,40 @@ def breakdown(texts: list[str]) -> dict:
     }
 
 
+ONE_CORE = """
+import json, os, sys, time
+os.sched_setaffinity(0, {int(sys.argv[1])})  # before JAX starts: its thread pools get one thread
+import numpy as np
+import jgrounding as jg
+from jgrounding import semantics
+semantics.warmup(256)
+texts = json.loads(sys.stdin.read())
+jg.ground(texts[0], escalate=False)
+t = []
+for text in texts:
+    t0 = time.perf_counter()
+    jg.ground(text, escalate=False)
+    t.append(time.perf_counter() - t0)
+t = np.array(t) * 1e3
+print(json.dumps({"ms_median": float(np.median(t)), "ms_p99": float(np.percentile(t, 99)), "n": len(t)}))
+"""
+
+
+def one_core_latency(texts: list[str]) -> dict | None:
+    """Warm latency of ``jg.ground`` in a process pinned to one CPU core (``taskset -c N`` does the same): JAX then
+    runs each program in one thread, so it never waits for a second thread on a core another process holds.
+    None where CPU affinity cannot be set (not Linux)."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    core = min(os.sched_getaffinity(0))
+    out = subprocess.run(
+        [sys.executable, "-c", ONE_CORE, str(core)], input=json.dumps(texts), cwd=ROOT, capture_output=True, text=True
+    )
+    if out.returncode:
+        raise RuntimeError(out.stderr[-2000:])
+    return json.loads(out.stdout.strip().splitlines()[-1]) | {"core": core}
+
+
 def first_call_seconds(cache: str | None) -> float:
     """The first ``jg.ground`` in a fresh process (import included); ``cache``: a compilation-cache folder."""
     env = dict(os.environ)
@@ -274,6 +308,8 @@ def main(argv=None) -> int:
         t = np.concatenate(times) * 1e3
         latency[name] = {"ms_median": float(np.median(t)), "ms_p99": float(np.percentile(t, 99)), "n": len(t)}
     parts = breakdown([it["text"] for split in splits.values() for it in split])
+    load_pinned = os.getloadavg()[0]
+    pinned = one_core_latency([it["text"] for split in splits.values() for it in split])
     t0 = time.perf_counter()
     jg.ground_many([it["text"] for it in splits["v2 test"]])
     batched_ms = 1e3 * (time.perf_counter() - t0) / len(splits["v2 test"])
@@ -317,6 +353,14 @@ def main(argv=None) -> int:
         "| reducer | warm median | p99 |",
         "|---|---|---|",
         *[f"| {n} | {latency[n]['ms_median']:.2f} | {latency[n]['ms_p99']:.2f} |" for n in REDUCERS],
+        *(
+            [
+                f"| new, process pinned to one core (CPU {pinned['core']}; load average {load_pinned:.1f} before) "
+                f"| {pinned['ms_median']:.2f} | {pinned['ms_p99']:.2f} |"
+            ]
+            if pinned
+            else []
+        ),
         "",
         f"First `jg.ground` in a fresh process (import, weights, compile or cache load): {np.median(first_warm):.2f} s "
         f"with the compilation cache warm (median of 3: {', '.join(f'{x:.2f}' for x in first_warm)}), "
@@ -396,6 +440,7 @@ def main(argv=None) -> int:
         "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
         "batched_ms_per_response": batched_ms,
         "breakdown": parts,
+        "one_core": pinned,
         "goals": {g: {"met": bool(ok), "measured": v} for g, ok, v in checks},
         "head": {k: head.meta.get(k) for k in ("selected", "temperature", "threshold", "params_digest")},
         "risk_coverage": {
