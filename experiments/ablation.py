@@ -163,7 +163,14 @@ def environment() -> dict:
     """What can make a re-run differ on another machine: threads, XLA flags, versions (recorded in results)."""
     import os
 
+    flags = ""
+    try:
+        flags = next(line for line in Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("flags"))
+    except (OSError, StopIteration):
+        pass
+    isa = next((x for x in ("avx512f", "avx2", "avx") if f" {x} " in f"{flags} "), platform.machine())
     return {
+        "cpu_isa": isa,  # XLA emits code for it: results reproduce bit for bit only on the same instruction set
         "cpu_count": os.cpu_count(),
         "XLA_FLAGS": os.environ.get("XLA_FLAGS", ""),
         "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", ""),

@@ -95,6 +95,16 @@ def markdown(res: dict) -> str:
             else "– | – | – | –"
         )
         lines.append(f"| {label} | {s[0]:.3f} ± {s[1]:.3f} | – | – | – | – | {phys} | – |")
+    env = res.get("environment")
+    if env:
+        lines += [
+            "",
+            f"Reproducibility: run on {env['cpu_count']} cores, {env['cpu_isa']}, jax {env['jax']} "
+            f"({env['backend']}), XLA_FLAGS={env['XLA_FLAGS'] or '(none)'}. A re-run on a CPU with the same "
+            "instruction set gives these numbers bit for bit, whatever the thread count; on another instruction "
+            "set (e.g. AVX2 without AVX-512) XLA emits other code, float rounding differs, and training amplifies "
+            "it: results/reproducibility.md measures the spread (python -m experiments.reproducibility).",
+        ]
     tol, n_sim = res["shape_tolerance"], sum(r["samples"] for r in res["rows"].values())
     lines += [
         "",
@@ -315,16 +325,19 @@ def findings(res: dict) -> list[str]:
     return out
 
 
+def render(res: dict) -> str:
+    """results/ablation.md of a run: Table II, the findings and the benchmark v3 table."""
+    dist_md = distribution_markdown(res)
+    return (
+        markdown(res) + "\n" + "\n".join(f"- {f}" for f in findings(res)) + "\n" + ("\n" + dist_md if dist_md else "")
+    )
+
+
 def write(res: dict, out: str) -> None:
     from jgrounding.io import write_atomic
 
     outdir = Path(out)
-    md = markdown(res)
-    dist_md = distribution_markdown(res)
-    write_atomic(
-        outdir / "ablation.md",
-        md + "\n" + "\n".join(f"- {f}" for f in findings(res)) + "\n" + ("\n" + dist_md if dist_md else ""),
-    )
+    write_atomic(outdir / "ablation.md", render(res))
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(
