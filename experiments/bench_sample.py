@@ -122,6 +122,7 @@ def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], 
         rate = gflop / (many / 1e3)
         name = Path(model.name).name
         w = f", w = {model.guidance:g}" if model.guidance else ""
+        w += f", T = {model.temperature(s):g}" if model.temperature(s) != 1.0 else ""  # initial-noise scale
         lines.append(
             f"| {s} | {name}{w} | {single:.3f} ms | {core:.3f} ms | {single / core:.2f}x | {many:.1f} ms | "
             f"{core_b:.1f} ms | {many / core_b:.2f}x | {gflop:.2f} | {rate:.1f} | {100 * rate / peak:.1f} % |"

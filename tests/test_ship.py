@@ -51,3 +51,34 @@ def test_the_halves_split_every_intent_and_intensity():
     for half in ("choice", "report"):
         assert set(intent[h[half]]) == set(range(16)) and set(intensity[h[half]]) == set(range(4))
     assert h["all"].tolist() == list(range(64))
+
+
+def test_the_report_checks_each_s_against_the_largest_and_shows_t_1():
+    def metrics(prec, mm, inten=0.96):
+        return {
+            "prec_r": prec,
+            "mode_cov": 1.0,
+            "mm_ratio": mm,
+            "intent_ret": 0.99,
+            "intensity_ret": inten,
+            "between": 0,
+        }
+
+    scores = {
+        "2": {"checkpoint": MF, "guidance": 0.0, "noise_scale": 1.4, **metrics(0.93, 0.85)},  # 0.03 below S = 50
+        "4": {"checkpoint": MF, "guidance": 0.0, "noise_scale": 1.3, **metrics(0.95, 0.88)},
+        "8": {"checkpoint": MF, "guidance": 0.0, "noise_scale": 1.0, **metrics(0.97, 0.75)},  # under-dispersed
+        "50": {"checkpoint": RF, "guidance": 0.25, "noise_scale": 1.1, **metrics(0.96, 0.82)},
+    }
+    for m in scores.values():
+        m["all_tuples"] = dict(m)
+    candidates = [
+        {"steps": 4, "checkpoint": MF, "guidance": 0.0, "noise_scale": 1.0, "report_half": metrics(0.98, 0.7)}
+    ]
+    rows = {
+        line.split("|")[1].strip(): line
+        for line in ship.report({"scores": scores, "candidates": candidates}).splitlines()
+        if line.startswith("| ") and line.split("|")[1].strip().isdigit()
+    }
+    assert "| no |" in rows["2"] and "| yes |" in rows["4"] and "| no |" in rows["8"] and "(reference)" in rows["50"]
+    assert rows["4"].endswith("| 0.980 | 0.700 |")  # the same checkpoint and w at T = 1

@@ -31,6 +31,10 @@ SECTIONS = (
         "### Few steps that keep the distribution: RF, 2-rectified flow, MeanFlow, shortcut (sweep fewstep)",
     ),
     ("sweep_fewstep.png", "Steps vs quality, mean ± std over seeds (one line per generator):"),
+    (
+        "ship.md",
+        "### What jg.sample serves per step count: guidance and noise scale chosen on half the tuples (experiments.ship)",
+    ),
     ("physics_aware.md", "### Physics-aware fine-tuning settings (experiments/physics_aware.py)"),
     ("ablation_folds.md", "### 4-fold cross-validation (experiments/ablation.py --folds 4)"),
     ("bench_sample.md", "### Speed: sampling and training (experiments/bench.py sample)"),
