@@ -75,10 +75,16 @@ def test_the_report_checks_each_s_against_the_largest_and_shows_t_1():
     candidates = [
         {"steps": 4, "checkpoint": MF, "guidance": 0.0, "noise_scale": 1.0, "report_half": metrics(0.98, 0.7)}
     ]
-    rows = {
-        line.split("|")[1].strip(): line
-        for line in ship.report({"scores": scores, "candidates": candidates}).splitlines()
-        if line.startswith("| ") and line.split("|")[1].strip().isdigit()
-    }
-    assert "| no |" in rows["2"] and "| yes |" in rows["4"] and "| no |" in rows["8"] and "(reference)" in rows["50"]
-    assert rows["4"].endswith("| 0.980 | 0.700 |")  # the same checkpoint and w at T = 1
+    fresh = {s: {m: [0.9, 0.9] for m in ship.FRESH} for s in ("2", "50")}
+    fresh["2"]["prec_r"], fresh["50"]["prec_r"] = [0.95, 0.93], [0.96, 0.96]
+    text = ship.report(
+        {"scores": scores, "candidates": candidates, "fresh_keys": {"keys": [20, 21], "report_half": fresh}}
+    )
+    rows = {}
+    for line in text.splitlines():
+        if line.startswith("| ") and line.split("|")[1].strip().isdigit():
+            rows.setdefault(line.split("|")[1].strip(), []).append(line)
+    assert "| no |" in rows["2"][0] and "| yes |" in rows["4"][0] and "| no |" in rows["8"][0]
+    assert "(reference)" in rows["50"][0]
+    assert rows["4"][0].endswith("| 0.980 | 0.700 |")  # the same checkpoint and w at T = 1
+    assert rows["2"][1].endswith("| +0.020 (+0.010, +0.030) | 1 of 2 |")  # other keys: the gap key by key
