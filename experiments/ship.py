@@ -7,7 +7,7 @@
 2. Trains its 2-rectified flow into assets/checkpoints/tuple_spline_rf_reflow, and MeanFlow and the shortcut
    model (issue #25; same options and data) into assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
    few-step candidates.
-3. For each step count S in ``--step-counts``, scores every (checkpoint, guidance w, noise scale T)
+3. For each step count S in ``STEP_COUNTS``, scores every (checkpoint, guidance w, noise scale T)
    candidate through ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples)
    on the evaluation set with :mod:`jgrounding.evaluation.distribution`, and picks the one with the best
    score on the *choice half* of the tuples (:func:`halves`): the mean of Prec@r, ModeCov, intent and
@@ -18,10 +18,12 @@
    tuple sample less spread than the demonstrations at T = 1, a few-step model the least. The chosen
    guidance and noise scales are recorded in each checkpoint; assets/checkpoints/shipped.json says which
    checkpoint serves which S with the scores on the *report half* (never used to choose), the choice
-   half and all tuples, and results/ship.md tabulates them.
+   half and all tuples, and the served settings on the report half again with 6 other keys
+   (:func:`fresh_keys`); results/ship.md tabulates them.
 
-``--no-train`` re-runs only the choice on the checkpoints already there; ``--only NAME,...`` trains only those
-checkpoints (e.g. the few-step ones) and then chooses among all. Prints every command it runs.
+``--no-train`` re-runs only the choice on the checkpoints already there (about 800 candidates, ~20 min on a
+busy 2-core machine); ``--only NAME,...`` trains only those checkpoints (e.g. the few-step ones) and then
+chooses among all; ``--report-only`` rewrites results/ship.md from shipped.json. Prints every command it runs.
 """
 
 from __future__ import annotations
