@@ -66,6 +66,7 @@ class Model:
         self._emb = jax.device_put(self.intent_emb)
         self._programs: dict = {}
         self._single: dict = {}  # (intent, intensity) -> device index arrays of a single-tuple call
+        self._configs: dict = {}  # (sampler, steps) of a call -> its SampleConfig (config())
         self._zero = jax.device_put(np.int32(0))
         self._rest = jax.device_put(np.zeros(trained.num_tendons, np.float32))
 
@@ -115,7 +116,13 @@ class Model:
 
     def config(self, sampler: str | None = None, steps: int = SampleConfig.steps) -> SampleConfig:
         """The :class:`SampleConfig` this model samples with for a user's ``sampler`` (None: the generator's
-        default) and ``steps``, its recorded guidance kept; ``ValueError`` naming the valid choices."""
+        default) and ``steps``, its recorded guidance kept; ``ValueError`` naming the valid choices. Built once
+        per (sampler, steps) of the call's types (a bool is not taken for the integer it equals)."""
+        key = (type(sampler), sampler, type(steps), steps)
+        try:
+            return self._configs[key]
+        except (KeyError, TypeError):  # TypeError: unhashable, refused below
+            pass
         valid = self.generator.samplers  # the first is the generator's default
         sampler = valid[0] if sampler is None else sampler
         if not isinstance(sampler, str) or sampler not in valid:
@@ -123,9 +130,11 @@ class Model:
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 1000:
             raise ValueError(f"steps must be an integer in 1..1000, got {steps!r}")
         steps = int(steps) if self.generator.iterative else 1
-        return dataclasses.replace(
+        config = dataclasses.replace(
             self.trained.sample_config, sampler=sampler, steps=steps, noise_scale=self.temperature(steps)
         )
+        self._configs[key] = config
+        return config
 
     def sample(
         self, key, intent, intensity, num_samples=1, config=None, *, current=safety.REST, start_conditioned=False
