@@ -34,6 +34,9 @@ MAX_SLEW = 0.1
 # half-cosine of length L moves at most pi / (2 L) of the offset per step: <= 0.052 for the largest
 # offset (1.0), half the slew bound, so the blend itself leaves room for the trajectory's own motion.
 BLEND_STEPS = 30
+# Steps of the slew-limit scan per loop iteration: the same result, with a fifth of XLA's loop overhead (a batch
+# of 1,920 trajectories at S = 4 went from 13.3 to 12.3 ms on 2 CPU cores; one trajectory is unchanged).
+SLEW_UNROLL = 5
 REST = "rest"  # the robot's command at rest: every tendon slack (0)
 
 
@@ -48,7 +51,7 @@ def _rate_limit(u: jax.Array, max_slew: float, start: jax.Array) -> jax.Array:
         nxt = prev + jnp.clip(target - prev, -max_slew, max_slew)
         return nxt, nxt
 
-    _, out = jax.lax.scan(step, start, u)
+    _, out = jax.lax.scan(step, start, u, unroll=SLEW_UNROLL)
     return out
 
 
