@@ -246,9 +246,14 @@ def _indices(ms: list | None, zs: list | None, intent, intensity) -> tuple[np.nd
     return m, z
 
 
+@functools.lru_cache(maxsize=16)
+def _is_key_dtype(dtype) -> bool:
+    return bool(jnp.issubdtype(dtype, jax.dtypes.prng_key))
+
+
 def as_key(key):
     accepted = "a typed key from jax.random.key(seed) or a raw uint32[2] key from jax.random.PRNGKey(seed)"
-    if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
+    if isinstance(key, jax.Array) and _is_key_dtype(key.dtype):
         if key.shape != ():
             raise ValueError(f"key must be a single key ({accepted}), got a key array of shape {key.shape}")
         return key
