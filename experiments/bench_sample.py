@@ -264,7 +264,7 @@ def train_rows(lib, steps: int) -> list[str]:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--reps", type=int, default=200, help="calls per single-trajectory median")
-    p.add_argument("--batch-reps", type=int, default=5, help="calls per batch median")
+    p.add_argument("--batch-reps", type=int, default=15, help="calls per batch median")
     p.add_argument("--train-steps", type=int, default=10_000)
     p.add_argument("--skip-train", action="store_true")
     p.add_argument("--all-samplers", action="store_true", help="also every RF sampler and DDPM (issue #14 table)")
