@@ -55,4 +55,7 @@ class Generator(Protocol):
         self, model: nnx.Module, cond: jax.Array, intensity: jax.Array, key: jax.Array, dim: int, config: SampleConfig
     ) -> jax.Array:
         """Normalized targets ``(B, D)`` or ``(B, L, N_u)`` for conditions ``cond (B, E)``, ``intensity (B,)``;
-        ``dim`` D = N_u * L is the flat target size."""
+        ``dim`` D = N_u * L is the flat target size. A generator whose network takes the condition as a
+        first-layer context (``uses_context = True``: the flows and the few-step generators) also accepts
+        ``context=`` rows ``(B, H)`` computed beforehand (:meth:`Trained.contexts`), and the flows ``known=``
+        coordinates to inpaint."""

@@ -137,11 +137,14 @@ class _Jump:
         key, keep = condition_keep(batch, key, config)
         return key, lambda x, t, s: model(x, t, s, batch["cond"], batch["intensity"], keep)
 
-    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):
-        """S jumps from ``eps = N(key) (B, D)``; guidance w: net = net_c + w (net_c - net_null)."""
-        b = cond.shape[0]
-        eps = config.noise_scale * jax.random.normal(key, (b, dim))  # temperature of the initial noise
-        net = guided(model, model.context(cond, intensity), config.guidance)
+    uses_context = True  # as flows._Flow: the condition's first-layer rows can be precomputed per tuple
+
+    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None, context=None):
+        """S jumps from ``eps = N(key) (B, D)``; guidance w: net = net_c + w (net_c - net_null). ``context``:
+        precomputed ``model.context(cond, intensity)`` rows, as :meth:`flows._Flow.sample` takes them."""
+        context = model.context(cond, intensity) if context is None else context
+        eps = config.noise_scale * jax.random.normal(key, (context.shape[0], dim))  # temperature of the noise
+        net = guided(model, context, config.guidance)
         times = np.linspace(0.0, 1.0, config.steps + 1)
         return jump_sample(net, eps, times, self.second(config.steps), model.time_context, known)
 

@@ -248,15 +248,18 @@ class _Flow:
         key, keep = condition_keep(batch, key, config)
         return key, lambda x, t: model(x, t, batch["cond"], batch["intensity"], keep)
 
-    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None):
+    uses_context = True  # the condition enters as a first-layer context row (precomputable per tuple)
+
+    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None, context=None):
         """Integrate from noise ``eps = N(key) (B, D)``; guidance w: v = v_c + w (v_c - v_null), the
         conditional and null rows through the network as one batch. ``known``: coordinates fixed by
-        inpainting (:func:`rf_sample`; rectified flow only)."""
-        b = cond.shape[0]
-        eps = config.noise_scale * jax.random.normal(key, (b, dim))  # temperature of the initial noise
+        inpainting (:func:`rf_sample`; rectified flow only). ``context``: the condition's first-layer rows
+        ``(B, H)`` when already computed (``model.context(cond, intensity)``; ``cond`` is then unused)."""
         # What does not change across flow steps is computed once, before the sampler's loop: the
         # condition's share of the first layer, and the time embedding's share for every step.
-        net = guided(model, model.context(cond, intensity), config.guidance)
+        context = model.context(cond, intensity) if context is None else context
+        eps = config.noise_scale * jax.random.normal(key, (context.shape[0], dim))  # temperature of the noise
+        net = guided(model, context, config.guidance)
         if known is not None:
             return self._integrate(net, eps, key, config, model.time_context, known=known)
         return self._integrate(net, eps, key, config, model.time_context)

@@ -20,6 +20,7 @@ from flax import nnx
 from jgrounding import safety
 from jgrounding.config import NUM_CONTROLS, NUM_TENDONS, ModelConfig, SampleConfig
 from jgrounding.generators import methods
+from jgrounding.vocabulary import NUM_INTENSITIES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,7 +74,20 @@ class Trained:
             raise ValueError(f"unknown sampler {config.sampler!r} for {self.method}; valid: {', '.join(valid)}")
         return config
 
-    def actuation(self, key, cond, intensity, config: SampleConfig | None = None, *, params=None, start=None):
+    def contexts(self, intent_emb, params=None):
+        """The first-layer context rows of every (intent, intensity) tuple, ``(num_intents * 4, H)`` in
+        intent-major order, for a tuple-conditioned generator that takes them (``uses_context``): what
+        :meth:`actuation` would compute from the intent embeddings, once instead of on every call. ``None``
+        for a method without them (regressors, raw-text conditioning)."""
+        if not getattr(self.spec.generator, "uses_context", False) or self.spec.condition.needs_text:
+            return None
+        model = nnx.merge(self.graphdef, self.seed_params(0) if params is None else params)
+        m, z = jnp.divmod(jnp.arange(len(intent_emb) * NUM_INTENSITIES), NUM_INTENSITIES)
+        return model.context(methods.bound_condition(jnp.asarray(intent_emb)[m]), z)
+
+    def actuation(
+        self, key, cond, intensity, config: SampleConfig | None = None, *, params=None, start=None, context=None
+    ):
         """Ungated actuation for a batch of conditions: the generator's sample decoded to [0, 1] and, for a
         spline method, reconstructed u = R(c). Pure: jit and vmap it (over ``params`` for several seeds).
 
@@ -84,23 +98,26 @@ class Trained:
           start: ``(B, N_u)`` commands in [0, 1] or None. Given, the first Catmull-Rom control column is fixed
             to it by inpainting during the flow integration (:func:`flows.rf_sample`), so ``u[:, 0] == start``
             and the rest of the motion is generated from that state.
+          context: the conditions' precomputed first-layer rows ``(B, H)`` (rows of :meth:`contexts`), or
+            None; given, ``cond`` is not read.
         Returns:
           u ``(B, 150, N_u)``, not yet through the safety gate (:meth:`sample` gates it).
         """
         s, config = self.spec, self.resolve(config)
         model = nnx.merge(self.graphdef, self.seed_params(0) if params is None else params)
-        cond = methods.bound_condition(cond)
+        cond = None if context is not None else methods.bound_condition(cond)
+        extra = {} if context is None else {"context": context}
         if start is None:
-            y = s.generator.sample(model, cond, intensity, key, self.dim, config)
+            y = s.generator.sample(model, cond, intensity, key, self.dim, config, **extra)
         else:
             methods.check_start_conditioning(self.method)
             # Flat layout of the targets: (N_u, P) row-major, so tendon j's first control is coordinate j * P.
             mask = (jnp.arange(self.dim) % self.num_controls) == 0
             first = jnp.repeat(methods.encode(jnp.asarray(start, jnp.float32)), self.num_controls, axis=-1)
-            y = s.generator.sample(model, cond, intensity, key, self.dim, config, known=(mask, first))
+            y = s.generator.sample(model, cond, intensity, key, self.dim, config, known=(mask, first), **extra)
         return s.representation.actuation(methods.decode(y), s.generator.sequence, self.num_tendons, self.num_controls)
 
-    def sample(self, key, cond, intensity, config: SampleConfig | None = None, *, params=None, start=None):
-        """:meth:`actuation` through the one safety gate (:func:`jgrounding.safety.make_safe`): ``(B, 150, N_u)``
-        inside the actuation bounds, slew-limited, never NaN."""
-        return safety.make_safe(self.actuation(key, cond, intensity, config, params=params, start=start))
+    def sample(self, key, cond, intensity, config: SampleConfig | None = None, **kwargs):
+        """:meth:`actuation` (same arguments: ``params``, ``start``, ``context``) through the one safety gate
+        (:func:`jgrounding.safety.make_safe`): ``(B, 150, N_u)`` inside the actuation bounds, slew-limited."""
+        return safety.make_safe(self.actuation(key, cond, intensity, config, **kwargs))

@@ -31,7 +31,7 @@ from jgrounding.config import NUM_STEPS, SampleConfig
 from jgrounding.generators import methods
 from jgrounding.generators.trained import Trained
 from jgrounding.training import checkpoints
-from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
+from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, intensity_index, intent_index
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "assets" / "checkpoints" / "tuple_spline_rf"
 # Which shipped checkpoint serves which step count (python -m experiments.ship, from the training sweep):
@@ -64,6 +64,9 @@ class Model:
         self.noise_scale = dict(trained.noise_scales) or {None: trained.sample_config.noise_scale}
         self._params = jax.device_put(trained.seed_params(0))
         self._emb = jax.device_put(self.intent_emb)
+        # every tuple's first-layer context, computed once (no per-call condition layer); None: not this method
+        contexts = trained.contexts(self.intent_emb)
+        self._contexts = None if contexts is None else jax.device_put(np.asarray(contexts))
         self._programs: dict = {}
         self._single: dict = {}  # (intent, intensity) -> device index arrays of a single-tuple call
         self._configs: dict = {}  # (sampler, steps) of a call -> its SampleConfig (config())
@@ -81,11 +84,15 @@ class Model:
         cache_key = cache_key if continuity else (*cache_key, "no-current")
         cache_key = (*cache_key, "start") if start else cache_key
         if cache_key not in self._programs:
-            tr, params, emb = self.trained, self._params, self._emb
+            tr, params, emb, contexts = self.trained, self._params, self._emb, self._contexts
 
-            def row(intent, intensity, key, u0=None):  # one trajectory; params and embeddings are constants
+            def row(intent, intensity, key, u0=None):  # one trajectory; params, embeddings, contexts are constants
                 start = None if u0 is None else u0[None]
-                return tr.actuation(key, emb[intent][None], intensity[None], config, params=params, start=start)[0]
+                if contexts is None:
+                    cond, context = emb[intent][None], None
+                else:
+                    cond, context = None, contexts[intent * NUM_INTENSITIES + intensity][None]
+                return tr.actuation(key, cond, intensity[None], config, params=params, start=start, context=context)[0]
 
             def run(intent, intensity, first, key, u0=None):
                 TRACES[(self.name, *cache_key)] += 1  # Python side effect: counts traces, not calls

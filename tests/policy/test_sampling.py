@@ -1,6 +1,8 @@
 """The public sampler's fast path (issue #14): batched tuples, determinism, bucket independence, errors
 and no re-tracing."""
 
+import dataclasses
+
 import jax
 import numpy as np
 import pytest
@@ -127,3 +129,24 @@ def test_loading_a_checkpoint_names_the_shipped_library_without_importing_it():
     from jgrounding import library
 
     assert checkpoints.DEFAULT_LIBRARY == library.DEFAULT_PATH
+
+
+def test_precomputed_tuple_contexts_give_the_same_samples():
+    # jg.sample gathers every tuple's first-layer context from a table computed once (Trained.contexts) instead
+    # of running the condition layer on every call; the samples must be what the condition gives
+
+    for steps in (50, 2):  # the shipped RF and the few-step model
+        model = sampling.model(sampling.shipped_checkpoint(steps))
+        tr, table = model.trained, model._contexts
+        assert table is not None and table.shape[0] == 64
+        m, z = np.array([0, 5, 15]), np.array([3, 1, 0])
+        config = model.config(None, steps)
+        key = jax.random.key(4)
+        direct = tr.actuation(key, model.intent_emb[m], z, config)
+        gathered = tr.actuation(key, None, z, config, context=table[m * 4 + z])
+        np.testing.assert_allclose(np.asarray(gathered), np.asarray(direct), atol=1e-5)
+    assert tr.contexts(model.intent_emb).shape == table.shape
+    regressor = sampling.Model(
+        dataclasses.replace(tr, method="tuple_spline_cnn"), model.intent_emb
+    )  # a regressor takes no context
+    assert regressor._contexts is None
