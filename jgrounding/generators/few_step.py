@@ -101,8 +101,8 @@ def jump_sample(network, eps, times, seconds, embed_time=None, known=None, inpai
     times = np.asarray(times, np.float32)
     steps = len(times) - 1
     dts, ends = jnp.asarray(np.diff(times)), jnp.asarray(times[1:])
-    t0, s0 = jnp.asarray(times[:-1]), jnp.asarray(np.asarray(seconds, np.float32))
     with jax.ensure_compile_time_eval():  # constant parameters (the public sampler): computed once, at trace time
+        t0, s0 = jnp.asarray(times[:-1]), jnp.asarray(np.asarray(seconds, np.float32))
         feats = None if embed_time is None else embed_time(t0, s0)
 
     def step(k, x):
