@@ -463,16 +463,7 @@ def configure(args, p: argparse.ArgumentParser) -> Config:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument(
-        "--config", default="paper", choices=tuple(configs.CONFIGS), help="named configuration (jgrounding.config)"
-    )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="SECTION.FIELD=VALUE",
-        help="override one setting, e.g. --set train.steps=2000 --set eval.seeds=0,1 (repeatable)",
-    )
+    configs.add_arguments(p, "eval.seeds=0,1")
     p.add_argument(
         "--rescore-public",
         action="store_true",

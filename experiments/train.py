@@ -32,16 +32,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description="Train one Table II method.")
     p.add_argument("--method", choices=methods.ALL_METHODS, default="tuple_spline_rf")
-    p.add_argument(
-        "--config", default="paper", choices=tuple(configs.CONFIGS), help="named configuration (jgrounding.config)"
-    )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="SECTION.FIELD=VALUE",
-        help="override one setting of the model, train or sample section, e.g. --set train.ema_decay=0.999",
-    )
+    configs.add_arguments(p, "train.ema_decay=0.999")
     p.add_argument("--steps", type=int, help=f"= --set train.steps=... (default {training.TrainConfig.steps})")
     p.add_argument("--chunk", type=int, help=f"= --set train.chunk=... (default {training.TrainConfig.chunk})")
     p.add_argument("--seeds", default="0", help="comma-separated seeds, e.g. 0,1,2,3,4")

@@ -256,6 +256,19 @@ def get(name: str = "paper", overrides=()) -> Config:
     return cfg
 
 
+def add_arguments(parser, example: str = "train.steps=2000") -> None:
+    """``--config NAME`` and repeatable ``--set SECTION.FIELD=VALUE`` on a command line's ``parser``; the
+    script applies them with ``get(args.config, [...shorthands, *args.set])``."""
+    parser.add_argument("--config", default="paper", choices=tuple(CONFIGS), help="named configuration")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help=f"override one setting, e.g. --set {example} (repeatable; sections: model, train, sample, physics, eval)",
+    )
+
+
 def to_dict(cfg) -> dict:
     """The whole configuration as plain JSON-ready data (what results and checkpoints record)."""
     return dataclasses.asdict(cfg)

@@ -100,25 +100,11 @@ def test_guidance_extrapolates_from_the_null_condition(tiny):
 def test_guidance_zero_is_the_conditional_sampler(tiny):
     lib, tr = tiny
     cond = semantics.intent_embeddings()[lib.heldout.intent[:4]]
-    a = generate.generate(
-        tr, cond, lib.heldout.intensity[:4], jax.random.key(5), num_samples=2, config=SampleConfig(steps=4)
-    )
-    b = generate.generate(
-        tr,
-        cond,
-        lib.heldout.intensity[:4],
-        jax.random.key(5),
-        num_samples=2,
-        config=SampleConfig(steps=4, guidance=0.0),
-    )
-    c = generate.generate(
-        tr,
-        cond,
-        lib.heldout.intensity[:4],
-        jax.random.key(5),
-        num_samples=2,
-        config=SampleConfig(steps=4, guidance=1.0),
-    )
+
+    def draw(config):
+        return generate.generate(tr, cond, lib.heldout.intensity[:4], jax.random.key(5), num_samples=2, config=config)
+
+    a, b, c = (draw(SampleConfig(steps=4, **w)) for w in ({}, {"guidance": 0.0}, {"guidance": 1.0}))
     assert np.array_equal(a, b) and not np.allclose(a, c)
 
 
