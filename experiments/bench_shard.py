@@ -25,7 +25,7 @@ NUM_SAMPLES = 30  # K_div of Table I
 
 
 def measure(mesh_sizes, reps: int, dump: str | None = None) -> list[dict]:
-    """Time ``methods.generate`` over meshes of the given sizes in this process."""
+    """Time ``evaluation.generate.generate`` over meshes of the given sizes in this process."""
     import jax
     import numpy as np
 

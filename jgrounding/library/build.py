@@ -32,7 +32,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INT
 
 FORMAT_VERSION = 1
 # The library's content version: bump when the design (primitives, code, screening, responses) changes.
-# Checkpoints record it with the library's sha256 and are refused on another library (methods.restore).
+# Checkpoints record it with the library's sha256 and are refused on another library (training.checkpoints.restore_trained).
 LIBRARY_VERSION = "3.0-rest-start"
 ASSETS = Path(__file__).resolve().parents[2] / "assets"
 DEFAULT_PATH = ASSETS / "library.npz"

@@ -1,7 +1,7 @@
 """Scale-out on JAX's own distribution: one 1-D device mesh, data-parallel over samples and seeds.
 
-Nothing here is a second implementation of training or sampling. :func:`methods.generate` and
-:func:`methods.train` (through :func:`training.train`) take ``mesh=``; with a mesh
+Nothing here is a second implementation of training or sampling. :func:`jgrounding.evaluation.generate.generate` and
+:func:`jgrounding.training.trainer.fit` (through :func:`training.train`) take ``mesh=``; with a mesh
 
 - evaluation shards the flattened (condition x sample) batch over the mesh axis ``"data"`` (the
   parameters are replicated), and
