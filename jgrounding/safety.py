@@ -180,7 +180,24 @@ def gated(fn, *, continuity: bool = False):
     def call(*args) -> np.ndarray:
         return release(compiled(*args))
 
-    call.compiled = compiled
+    def specialize(*example, compiler_options: dict | None = None):
+        """``call`` compiled ahead of time for arguments shaped and typed like ``example``: the XLA executable
+        is called directly (no tracing, no jit dispatch). Arguments of another type (e.g. a key of another
+        PRNG implementation) go through the jitted function; either way the result leaves through
+        :func:`release`. ``compiler_options``: XLA options of this executable only."""
+        executable = compiled.lower(*example).compile(compiler_options=compiler_options)
+
+        def run(*args) -> np.ndarray:
+            try:
+                out = executable(*args)
+            except TypeError:  # "argument types differ from the types for which this computation was compiled"
+                out = compiled(*args)
+            return release(out)
+
+        run.compiled, run.executable = compiled, executable
+        return run
+
+    call.compiled, call.specialize = compiled, specialize
     return call
 
 
