@@ -103,7 +103,7 @@ def jump_sample(network, eps, times, seconds, embed_time=None, known=None, inpai
     dts, ends = jnp.asarray(np.diff(times)), jnp.asarray(times[1:])
     with jax.ensure_compile_time_eval():  # constant parameters (the public sampler): computed once, at trace time
         t0, s0 = jnp.asarray(times[:-1]), jnp.asarray(np.asarray(seconds, np.float32))
-        feats = None if embed_time is None else embed_time(t0, s0)
+        feats = None if embed_time is None else jax.jit(embed_time)(t0, s0)  # one program, not op by op
 
     def step(k, x):
         if feats is None:

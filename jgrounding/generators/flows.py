@@ -70,7 +70,7 @@ def _time_features(grid: np.ndarray, embed_time):
     if embed_time is None:
         return jnp.asarray(grid, jnp.float32), lambda x, f: jnp.full(x.shape[:1], f)
     with jax.ensure_compile_time_eval():  # constant parameters (the public sampler): computed once, at trace time
-        feats = embed_time(jnp.asarray(grid.reshape(-1), jnp.float32))
+        feats = jax.jit(embed_time)(jnp.asarray(grid.reshape(-1), jnp.float32))  # one program, not op by op
     return feats.reshape(grid.shape + feats.shape[-1:]), lambda x, f: f
 
 

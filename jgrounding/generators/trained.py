@@ -15,6 +15,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import nnx
 
 from jgrounding import safety
@@ -81,9 +82,14 @@ class Trained:
         for a method without them (regressors, raw-text conditioning)."""
         if not getattr(self.spec.generator, "uses_context", False) or self.spec.condition.needs_text:
             return None
-        model = nnx.merge(self.graphdef, self.seed_params(0) if params is None else params)
-        m, z = jnp.divmod(jnp.arange(len(intent_emb) * NUM_INTENSITIES), NUM_INTENSITIES)
-        return model.context(methods.bound_condition(jnp.asarray(intent_emb)[m]), z)
+        params = self.seed_params(0) if params is None else params
+        m, z = np.divmod(np.arange(len(intent_emb) * NUM_INTENSITIES), NUM_INTENSITIES)
+
+        @jax.jit  # one program (a first jg.sample lowers it once instead of one per operation)
+        def table(params, emb):
+            return nnx.merge(self.graphdef, params).context(methods.bound_condition(emb[m]), z)
+
+        return table(params, jnp.asarray(intent_emb, jnp.float32))
 
     def actuation(
         self, key, cond, intensity, config: SampleConfig | None = None, *, params=None, start=None, context=None
