@@ -14,7 +14,7 @@ def lib():
 
 @pytest.fixture(scope="module")
 def refs(lib):
-    return D.reference_scores(lib, k=8)
+    return D.reference_scores(lib, k=6)
 
 
 def test_reference_brackets_hold(refs):

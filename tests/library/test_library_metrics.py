@@ -37,9 +37,11 @@ def test_regeneration_is_byte_identical(tmp_path):
 
 
 def test_another_seed_gives_another_library(tmp_path):
-    cfg = library.BuildConfig(seed=1, max_rounds=12, eval_realizations=2)
+    cfg = library.BuildConfig(seed=1, realizations=2, eval_realizations=2)  # small: only the seed matters here
     arrays, _ = library.build(cfg, progress=False)
-    assert not np.array_equal(arrays["u"], jg.load_library().train.u[:1])
+    with np.load(library.DEFAULT_PATH) as shipped:  # seed 0; the first record is the same tuple's first realization
+        assert arrays["u"].shape[1:] == shipped["u"].shape[1:]
+        assert not np.array_equal(arrays["u"][0], shipped["u"][0])
 
 
 def test_load_errors_name_the_file_and_the_fix(tmp_path):

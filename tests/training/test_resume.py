@@ -15,7 +15,7 @@ from jgrounding.generators import methods
 from jgrounding.training import checkpoints, distributed
 
 ROOT = Path(__file__).resolve().parents[2]
-STEPS, CHUNK = 2000, 100
+STEPS, CHUNK = 1000, 100
 
 
 def _command(out: Path) -> list[str]:
