@@ -41,7 +41,7 @@ MAX_SAMPLES = 4096  # samples per tuple
 MAX_TRAJECTORIES = 1 << 18  # N x K per call (~630 MB of float32 output)
 BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256, 640)  # compiled batch sizes; larger calls run chunks of 640
 CLASSIC_RUNTIME = {"xla_cpu_use_thunk_runtime": False}  # XLA's classic CPU runtime, per executable
-CLASSIC_MAX_BUCKET = 8  # buckets up to this size are compiled for it (the latency path)
+CLASSIC_MAX_BUCKET = 1  # single trajectories (the latency path) are compiled for it
 # (checkpoint, sampler, steps, bucket) -> times traced; a test checks repeated calls trace once.
 TRACES: collections.Counter = collections.Counter()
 
@@ -105,9 +105,9 @@ class Model:
             gated = safety.gated(fn, continuity=continuity)
             index = np.zeros(bucket, np.int32)
             example = (*(self._rest,) * (int(continuity) + int(start)), index, index, np.int32(0), jax.random.key(0))
-            # Small buckets (the latency path) run on XLA's classic CPU runtime: on 2 cores it runs one
-            # trajectory 2-3x faster than the thunk runtime (0.031 vs 0.110 ms at S = 2), while the batches, as
-            # fast or faster on the thunk runtime, keep the default (docs/how_it_works.md, "Latency").
+            # A single trajectory (the latency path) runs on XLA's classic CPU runtime: on 2 cores 2-3x faster
+            # than the thunk runtime (0.031 vs 0.110 ms at S = 2); batches, as fast or faster on the thunk
+            # runtime and compiled faster there, keep the default (docs/how_it_works.md, "Latency").
             options = CLASSIC_RUNTIME if bucket <= CLASSIC_MAX_BUCKET and jax.default_backend() == "cpu" else None
             try:
                 self._programs[cache_key] = gated.specialize(*example, compiler_options=options)
