@@ -64,6 +64,15 @@ class Trained:
             return self
         return dataclasses.replace(self, params=jax.tree.map(lambda x: x[:1], self.params), seeds=self.seeds[:1])
 
+    def noise_scale_for(self, steps: int) -> float:
+        """The initial-noise scale for ``steps`` steps: the one recorded for the smallest listed step count >=
+        ``steps`` (as the shipped routing), beyond the largest that of the largest; without per-step scales,
+        :attr:`sample_config`'s."""
+        if not self.noise_scales:
+            return self.sample_config.noise_scale
+        listed = sorted(self.noise_scales)
+        return self.noise_scales[next((s for s in listed if s >= steps), listed[-1])]
+
     def resolve(self, config: SampleConfig | None = None) -> SampleConfig:
         """``config`` (default: this model's own :attr:`sample_config`) with the generator's default sampler
         filled in; ``ValueError`` naming the valid samplers for one this generator does not have."""

@@ -62,8 +62,6 @@ class Model:
         self.name = name
         self.generator = trained.spec.generator
         self.guidance = float(trained.sample_config.guidance)  # classifier-free guidance w it samples with
-        # temperature of the initial noise: one number, or {steps: number} (:meth:`temperature`)
-        self.noise_scale = dict(trained.noise_scales) or {None: trained.sample_config.noise_scale}
         self._params = jax.device_put(trained.seed_params(0))
         self._emb = jax.device_put(self.intent_emb)
         # every tuple's first-layer context, computed once (no per-call condition layer); None: not this method
@@ -116,15 +114,8 @@ class Model:
         return self._programs[cache_key]
 
     def temperature(self, steps: int) -> float:
-        """The initial-noise scale this model samples ``steps`` steps with: its recorded number, or, recorded
-        per step count, that of the smallest listed S >= ``steps`` (as the shipped routing), beyond the
-        largest that of the largest; 1 when none is recorded."""
-        if None in self.noise_scale:
-            return self.noise_scale[None]
-        listed = sorted(self.noise_scale)
-        if not listed:
-            return 1.0
-        return self.noise_scale[next((s for s in listed if s >= steps), listed[-1])]
+        """The initial-noise scale this model samples ``steps`` steps with (:meth:`Trained.noise_scale_for`)."""
+        return self.trained.noise_scale_for(steps)
 
     def _current(self, current):
         """``(program prefix args, continuity)`` for the robot's current command (validated by the gate)."""
