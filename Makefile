@@ -26,10 +26,10 @@ lint: install
 
 # Tests run on every core (pytest-xdist), a test file per worker at a time: module fixtures stay shared.
 test: install lint
-	$(PY) -m pytest -q -ra -n auto --dist loadfile --durations=15
+	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder --durations=15
 
 test-fast: install
-	$(PY) -m pytest -q -ra -n auto --dist loadfile -m "not slow"
+	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder -m "not slow"
 
 # The main job: Table II over 5 seeds (+ references, physics, figures), the tolerance sweep it feeds, and
 # the README's results section regenerated from results/.

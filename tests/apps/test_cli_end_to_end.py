@@ -94,10 +94,11 @@ def test_cli_usage_error_exits_2_from_the_shell():
 
 @pytest.mark.slow
 def test_quick_ablation_end_to_end(tmp_path):
-    # --steps 30 and K = 4 instead of the quick config's 300 and 8: the test checks the whole path and the rows,
+    # --steps 30 and K = 2 instead of the quick config's 300 and 8: the test checks the whole path and the rows,
     # not what 300 steps learn (the CNNs are deterministic regressors either way, the RF samples noise either
-    # way); K = 4 halves the simulated samples and the reference rows' fresh realizations
-    argv = ["--quick", "--steps", "30", "--set", "eval.num_samples=4", "--out", str(tmp_path)]
+    # way); K = 2 (one sample of each variant) quarters the simulated samples and the reference rows' fresh
+    # realizations
+    argv = ["--quick", "--steps", "30", "--set", "eval.num_samples=2", "--out", str(tmp_path)]
     p = run("experiments.ablation", *argv, timeout=900)
     assert p.returncode == 0, p.stderr[-2000:]
     res = json.loads((tmp_path / "ablation.json").read_text())
@@ -112,13 +113,13 @@ def test_quick_ablation_end_to_end(tmp_path):
     }
     for r in rows.values():
         assert 0.0 <= r["success"][0] <= 1.0 and 0.0 <= r["feasible"][0] <= 1.0 and r["time_ms"] > 0
-        assert r["samples"] == 64 * 4 * 2  # every generated sample simulated (K_div x 64 x seeds)
+        assert r["samples"] == 64 * 2 * 2  # every generated sample simulated (K_div x 64 x seeds)
     cnn_div = max(rows[m]["diversity"][0] for m in rows if m.endswith("cnn"))
     assert cnn_div < 1e-6 < rows["tuple_spline_rf"]["diversity"][0]  # RF beats the CNNs on diversity
     assert (tmp_path / "ablation.md").read_text().count("|") > 50
     assert (tmp_path / "ablation.csv").read_text().count("\n") == 7
     cfg = res["config"]  # the whole composed config is recorded: the named entry with the run's overrides
-    assert (cfg["train"]["steps"], cfg["eval"]["num_samples"], cfg["eval"]["seeds"]) == (30, 4, [0, 1])
+    assert (cfg["train"]["steps"], cfg["eval"]["num_samples"], cfg["eval"]["seeds"]) == (30, 2, [0, 1])
     assert res["environment"]["cpu_count"] >= 1 and res["environment"]["cpu_isa"]
 
 
