@@ -1,6 +1,12 @@
 import os
+from pathlib import Path
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
+# One persistent compilation cache for the whole run: both pytest-xdist workers and every subprocess a test starts
+# (the CLI, training, the sharded and resumed runs) load what another already compiled instead of compiling it
+# again. In the repository's ignored .cache/ (where the MJX test keeps its programs), so a fresh clone starts cold.
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".cache" / "jax"))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.25")
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 
