@@ -564,7 +564,8 @@ def encoder_batches(texts, structs, batch_size: int = 64):
 def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The tuned head's probabilities of many texts (intent ``(N, 17)``, intensity ``(N, 4)``, reason ``(N, R)``):
     one compiled program per batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head
-    together, so one text costs one dispatch."""
+    together, with the head's nearest-neighbour vote when it has one (:attr:`head.Head.knn`), so one text costs one
+    dispatch."""
     from jgrounding.semantics import head as semantic_head
     from jgrounding.semantics import structure
 
@@ -576,7 +577,9 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
     for idx, ids, mask, pools in encoder_batches(texts, structs, batch_size):
         x = np.zeros((len(ids), extras.shape[1]), np.float32)
         x[: len(idx)] = extras[idx]
-        probs = semantic_head.predict_tuned(enc_params, head.params, ids, mask, pools, x, head.temperature)
+        probs = semantic_head.predict_tuned(
+            enc_params, head.params, ids, mask, pools, x, head.temperature, head.knn_arrays(), knn_k=head.knn_k
+        )
         probs = [np.asarray(a)[: len(idx)] for a in probs]
         if out is None:
             out = [np.zeros((len(texts), a.shape[1]), np.float32) for a in probs]
@@ -598,7 +601,9 @@ def warmup_tuned(head, max_tokens: int = 128) -> None:
             break
         ids, mask = np.zeros((1, length), np.int32), np.ones((1, length), np.int32)
         pools = np.ones((1, NUM_POOLS, length), np.float32)
-        for a in semantic_head.predict_tuned(enc_params, head.params, ids, mask, pools, extras, head.temperature):
+        for a in semantic_head.predict_tuned(
+            enc_params, head.params, ids, mask, pools, extras, head.temperature, head.knn_arrays(), knn_k=head.knn_k
+        ):
             a.block_until_ready()
 
 

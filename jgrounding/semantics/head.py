@@ -215,11 +215,40 @@ def _predict_all(params: dict, x, temperature):
 predict_all = jax.jit(_predict_all)
 
 
-@jax.jit
-def predict_tuned(enc_params: dict, params: dict, ids, mask, pools, extras, temperature):
+KNN_GATE_FLAGS = ("has_rejected", "log_line", "system_prefix", "not_understood", "background")
+
+
+def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
+    """The nearest-neighbour vote over the training texts, blended into the head's intent probabilities.
+
+    ``p = (1 - a) p_head + a p_knn`` for texts that read as a situation (their chosen part names no action, and
+    they have no rejected part and no log, system, not-understood or background cue); other texts keep
+    ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest to the text's tuned sentence vector
+    (cosine), weighted by exp((sim - best sim) / tau).
+
+    Args: knn (:func:`load_knn`: ``table`` ``(N, 384)`` unit vectors, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``
+    0/1 over the extras' columns that must be zero, ``tau``, ``a``); p_intent ``(B, 17)``; sentence ``(B, 384)``
+    unit vectors; extras ``(B, E)``. Returns ``(B, 17)``."""
+    knn = {k: jnp.asarray(v) for k, v in knn.items() if k != "meta"}
+    situation = jnp.sum(jnp.abs(extras) * knn["gate"], 1) == 0
+
+    def blend(p):
+        sim = sentence @ knn["table"].T.astype(jnp.float32)
+        best, idx = jax.lax.top_k(sim, k)
+        w = jnp.exp((best - best[:, :1]) / knn["tau"])
+        vote = jnp.einsum("bk,bkc->bc", w, knn["onehot"][idx]) / jnp.sum(w, 1, keepdims=True)
+        return jnp.where(situation[:, None], (1.0 - knn["a"]) * p + knn["a"] * vote, p)
+
+    # Most texts name an action: their program skips the table.
+    return jax.lax.cond(jnp.any(situation), blend, lambda p: p, p_intent)
+
+
+@functools.partial(jax.jit, static_argnames="knn_k")
+def predict_tuned(enc_params: dict, params: dict, ids, mask, pools, extras, temperature, knn=None, knn_k: int = 0):
     """The tuned head's whole grounding of a batch in one compiled program: the encoder (with its tuned top
     layers) pooled four ways (:func:`jgrounding.semantics.encoder.pool_ids`), the pooled vectors next to the
-    non-encoder inputs, then :func:`predict_all`.
+    non-encoder inputs, then :func:`predict_all`, and with ``knn`` (:attr:`Head.knn`) the nearest-neighbour
+    vote blended into the intent probabilities (:func:`knn_blend`, ``knn_k`` neighbours).
 
     Args: enc_params (:meth:`Head.encoder_params`); ids, mask ``(B, L)``; pools ``(B, 4, L)``; extras ``(B, E)``
     (:func:`jgrounding.semantics.embedded.tuned_extras`). Returns :func:`predict_all`'s three arrays."""
@@ -227,7 +256,10 @@ def predict_tuned(enc_params: dict, params: dict, ids, mask, pools, extras, temp
 
     pooled = encoder.pool_ids(enc_params, ids, mask, pools)
     x = jnp.concatenate([pooled.reshape(pooled.shape[0], -1), extras], axis=1)
-    return _predict_all(params, x, temperature)
+    p_intent, p_intensity, p_why = _predict_all(params, x, temperature)
+    if knn is not None:
+        p_intent = knn_blend(knn, p_intent, pooled[:, 0], extras, knn_k)
+    return p_intent, p_intensity, p_why
 
 
 def predict(params: dict, x, temperature):
@@ -333,6 +365,20 @@ class Head:
     threshold: float
     meta: dict
     encoder: dict | None = dataclasses.field(default=None, compare=False, repr=False)
+    knn: dict | None = dataclasses.field(default=None, compare=False, repr=False)  # :func:`load_knn`
+
+    @property
+    def knn_k(self) -> int:
+        """How many neighbours the vote reads (0: no vote)."""
+        return int(self.knn["meta"]["k"]) if self.knn else 0
+
+    @functools.cached_property
+    def _knn_arrays(self) -> dict | None:
+        return {k: v for k, v in self.knn.items() if k != "meta"} if self.knn else None
+
+    def knn_arrays(self) -> dict | None:
+        """The vote's arrays as :func:`predict_tuned` takes them (None: no vote)."""
+        return self._knn_arrays
 
     def encoder_params(self) -> dict:
         """The encoder weights this head reads (the frozen MiniLM, or with its tuned top layers)."""
@@ -343,7 +389,9 @@ class Head:
 
 @functools.lru_cache(maxsize=4)
 def load(path: str | None = None) -> Head:
-    """The shipped head (``assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it."""
+    """The shipped head (``assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it. A tuned
+    head made with the shipped nearest-neighbour table (``assets/semantic_knn.npz``, :func:`load_knn`) comes with
+    it, and with the confidence threshold refitted on dev with the vote."""
     path = Path(path or ASSET)
     if not path.exists():
         raise FileNotFoundError(f"{path} missing; regenerate it with `python -m tools.train_semantics`")
@@ -353,7 +401,69 @@ def load(path: str | None = None) -> Head:
         meta = json.loads(str(f["meta"]))
         deltas = unflatten({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
     enc = with_top(deltas, cfg) if cfg.tuned_layers else None
-    return Head(params, cfg, float(meta["temperature"]), float(meta["threshold"]), meta, enc)
+    threshold = float(meta["threshold"])
+    knn = load_knn(meta.get("params_digest", "")) if cfg.inputs == "tuned" else None
+    if knn is not None:
+        threshold = float(knn["meta"]["threshold"])
+    return Head(params, cfg, float(meta["temperature"]), threshold, meta, enc, knn)
+
+
+KNN_ASSET = ASSET.with_name("semantic_knn.npz")
+
+
+def knn_digest(table, labels) -> str:
+    """Digest of a nearest-neighbour table: its vectors (float16) and their intent labels."""
+    h = hashlib.sha256(np.asarray(table, np.float16).tobytes())
+    h.update(np.asarray(labels, np.int32).tobytes())
+    return h.hexdigest()[:16]
+
+
+def save_knn(path, table, labels, gate, meta: dict) -> Path:
+    """Write a nearest-neighbour table atomically: ``table`` ``(N, 384)`` unit vectors (stored float16),
+    ``labels`` ``(N,)`` in 0..16, ``gate`` ``(E,)`` 0/1 over the extras; ``meta``: k, tau, a, threshold,
+    head_digest (the head whose encoder made the vectors); its digest is added (:func:`knn_digest`)."""
+    from jgrounding.io import write_atomic
+
+    table = np.asarray(table, np.float16)
+    meta = dict(meta, digest=knn_digest(table, labels))
+    buf = io.BytesIO()
+    np.savez(
+        buf,
+        table=table,
+        labels=np.asarray(labels, np.int8),
+        gate=np.asarray(gate, np.float32),
+        meta=json.dumps(meta, sort_keys=True),
+    )
+    return write_atomic(path, buf.getvalue())
+
+
+def load_knn(head_digest: str, path=None) -> dict | None:
+    """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
+    missing or was made for another head): device arrays ``table`` ``(N, 384)`` (stored float16), ``onehot`` ``(N, 17)``,
+    ``gate`` ``(E,)``, scalars ``tau`` and ``a``, and its ``meta``. ``ValueError`` when its digest does not match."""
+    path = Path(path or KNN_ASSET)
+    if not path.exists():
+        return None
+    with np.load(path) as f:
+        meta = json.loads(str(f["meta"]))
+        if meta.get("head_digest") != head_digest:
+            return None
+        table, labels, gate = f["table"], f["labels"].astype(np.int32), f["gate"]
+    if knn_digest(table, labels) != meta["digest"]:
+        raise ValueError(
+            f"{path}: the table's digest does not match its meta; regenerate it with `python -m tools.semantics_knn --write`"
+        )
+    onehot = np.eye(NUM_CLASSES, dtype=np.float32)[labels]
+    arrays = jax.device_put(  # float32 on the device: no conversion per call
+        {
+            "table": table.astype(np.float32),
+            "onehot": onehot,
+            "gate": gate,
+            "tau": np.float32(meta["tau"]),
+            "a": np.float32(meta["a"]),
+        }
+    )
+    return arrays | {"meta": meta}
 
 
 def digest(params: dict) -> str:

@@ -1,0 +1,94 @@
+"""The nearest-neighbour vote over the training texts, blended into the tuned head's intent (#24)."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from jgrounding.semantics import embedded
+from jgrounding.semantics import head as sh
+from jgrounding.vocabulary import INTENTS
+from tools import semantics_knn
+
+# A v2 dev situation the head alone gets wrong (celebrating: the corpora pass exams far more often than they fail
+# them) and the vote gets right.
+FAILED_TEST = "The student just found out she failed her driving test."
+NAMES_AN_ACTION = [
+    "Nod.",
+    "The user looks sad; comfort them gently.",
+    "Rather than waving wildly, just give a small nod to show you heard them.",
+]
+
+
+@pytest.fixture(scope="module")
+def head():
+    h = sh.load()
+    if h.knn is None:
+        pytest.skip("the shipped head has no nearest-neighbour table")
+    return h
+
+
+def test_table_matches_its_digest_and_the_shipped_head(head):
+    with np.load(sh.KNN_ASSET) as f:
+        meta = json.loads(str(f["meta"]))
+        table, labels = f["table"], f["labels"]
+    assert meta["digest"] == sh.knn_digest(table, labels) == head.knn["meta"]["digest"]
+    assert meta["head_digest"] == head.meta["params_digest"]
+    assert table.shape == (meta["rows"], sh.EMBED_DIM) and labels.max() <= sh.NONE
+    np.testing.assert_allclose(np.linalg.norm(table.astype(np.float32), axis=1), 1.0, atol=2e-3)
+    assert head.threshold == meta["threshold"] and head.knn_k == meta["k"]
+    assert meta["dev_score"] > meta["head_alone"]["score"]  # it shipped under the ship rule
+
+
+def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_path):
+    rng = np.random.default_rng(0)
+    table = rng.normal(size=(6, sh.EMBED_DIM))
+    table /= np.linalg.norm(table, axis=1, keepdims=True)
+    path = sh.save_knn(
+        tmp_path / "knn.npz", table, np.arange(6), np.zeros(4), dict(k=2, tau=0.05, a=0.5, head_digest="x")
+    )
+    assert sh.load_knn("another head", path) is None
+    assert sh.load_knn("x", path)["meta"]["k"] == 2
+    with np.load(path) as f:
+        arrays = {k: f[k] for k in f.files}
+    arrays["labels"] = arrays["labels"][::-1].copy()
+    np.savez(path, **arrays)
+    with pytest.raises(ValueError, match="digest"):
+        sh.load_knn("x", path)
+
+
+def test_the_vote_turns_a_dev_situation_the_right_way(head):
+    alone = dataclasses.replace(head, knn=None)
+    p_alone = embedded.predict_tuned_many(alone, [FAILED_TEST])[0][0]
+    p_vote = embedded.predict_tuned_many(head, [FAILED_TEST])[0][0]
+    assert INTENTS[int(np.argmax(p_alone[: len(INTENTS)]))] == "celebrating"
+    assert INTENTS[int(np.argmax(p_vote[: len(INTENTS)]))] == "comforting"
+    assert p_vote.sum() == pytest.approx(1.0, abs=1e-5)
+
+
+def test_texts_that_name_an_action_keep_the_head_alone(head):
+    alone = dataclasses.replace(head, knn=None)
+    for a, b in zip(
+        embedded.predict_tuned_many(head, NAMES_AN_ACTION), embedded.predict_tuned_many(alone, NAMES_AN_ACTION)
+    ):
+        np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_shipped_blend_equals_the_dev_comparison():
+    """sh.knn_blend (in the compiled program) is the vote tools.semantics_knn compared on dev."""
+    rng = np.random.default_rng(1)
+    table = rng.normal(size=(50, 8)).astype(np.float32)
+    table /= np.linalg.norm(table, axis=1, keepdims=True)
+    labels = rng.integers(0, sh.NUM_CLASSES, 50)
+    q = rng.normal(size=(5, 8)).astype(np.float32)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    p = rng.dirichlet(np.ones(sh.NUM_CLASSES), 5).astype(np.float32)
+    extras = np.zeros((5, 3), np.float32)
+    extras[1, 0] = 1.0  # names an action: no vote
+    knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 0, 0]))
+    knn |= dict(tau=np.float32(0.05), a=np.float32(0.4))
+    got = np.asarray(sh.knn_blend(knn, p, q, extras, 7))
+    want = 0.6 * p + 0.4 * semantics_knn.knn_vote(q, table, labels, 7, 0.05)
+    want[1] = p[1]
+    np.testing.assert_allclose(got, want, atol=1e-5)

@@ -1,0 +1,300 @@
+"""A nearest-neighbour vote over the training texts, blended with the shipped tuned head (#24, dev only).
+
+    python -m tools.semantics_knn          # compare the variants: results/semantics_dev_knn.json
+    python -m tools.semantics_knn --write  # the chosen variant (CHOSEN): assets/semantic_knn.npz
+
+For every text the shipped head (``assets/semantic_head.npz``) already computes its tuned encoder's four pooled
+vectors and its hidden layer. Here the training texts (``assets/semantics_train/*.jsonl``) are put through the
+same path once, and a dev text's intent distribution becomes
+
+    p = (1 - a) p_head + a p_knn,    p_knn = the (similarity-weighted) intent vote of its k nearest training texts
+
+(cosine similarity in one of the head's representations; the vote is over the 16 intents and "none"). The
+intensity stays the head's. For each variant (representation, which training rows form the table, when the vote
+applies, k, a) the confidence threshold is refitted on v2 dev as :mod:`tools.train_semantics` does (optionally a
+temperature on the blend first), and the variant is scored with its functions. The test splits are never read.
+Features are cached in ``.cache/semantics/`` keyed by the head's digest and the texts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import io
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jgrounding.semantics import embedded
+from jgrounding.semantics import head as sh
+from tools import train_semantics as ts
+
+ROOT = ts.ROOT
+REPORT = ROOT / "results" / "semantics_dev_knn.json"
+POOL = sh.EMBED_DIM
+# The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
+# corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
+# this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
+CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5)
+
+
+def head_features(head, texts: list[str], cache_dir=ts.CACHE) -> np.ndarray:
+    """The shipped head's inputs ``(N, F)`` of ``texts`` (its tuned encoder's pools and the extras), cached."""
+    from jgrounding.io import write_atomic
+
+    key = hashlib.sha256(("\n".join(texts) + head.meta["params_digest"]).encode()).hexdigest()[:16]
+    path = Path(cache_dir) / f"knn-{key}.npz"
+    if path.exists():
+        with np.load(path) as f:
+            return f["x"]
+    print(f"  encoding {len(texts)} texts with the shipped head's encoder", flush=True)
+    x = embedded.head_inputs(head, texts)
+    buf = io.BytesIO()
+    np.savez(buf, x=x)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, buf.getvalue())
+    return x
+
+
+def hidden(params, x) -> np.ndarray:
+    """The head's hidden layer ``(N, H)`` (gelu, tanh form as jax.nn.gelu's default)."""
+    z = x @ np.asarray(params["w1"]) + np.asarray(params["b1"])
+    return 0.5 * z * (1 + np.tanh(np.sqrt(2 / np.pi) * (z + 0.044715 * z**3)))
+
+
+def representation(kind: str, params, x) -> np.ndarray:
+    """Unit vectors of one representation: "sentence" (pool 0), "chosen" (pool 1), "pools" (all four pooled
+    vectors) or "hidden" (the head's hidden layer)."""
+    v = {
+        "sentence": lambda: x[:, :POOL],
+        "chosen": lambda: x[:, POOL : 2 * POOL],
+        "pools": lambda: x[:, : 4 * POOL],
+        "hidden": lambda: hidden(params, x),
+    }[kind]()
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+
+
+def knn_vote(q: np.ndarray, table: np.ndarray, labels: np.ndarray, k: int, tau: float) -> np.ndarray:
+    """Intent vote ``(N, 17)`` of each query's ``k`` nearest table rows (cosine); weights exp(sim / tau), or equal
+    when ``tau`` is 0."""
+    sim = q @ table.T
+    top = np.argsort(-sim, axis=1)[:, :k]
+    s = np.take_along_axis(sim, top, 1)
+    w = np.ones_like(s) if tau == 0 else np.exp((s - s[:, :1]) / tau)
+    out = np.zeros((len(q), sh.NUM_CLASSES))
+    for j in range(k):
+        np.add.at(out, (np.arange(len(q)), labels[top[:, j]]), w[:, j])
+    return out / out.sum(1, keepdims=True)
+
+
+def no_motion_words(x) -> np.ndarray:
+    """Texts whose chosen part names no action, with no rejected part and no log, system, not-understood or
+    background cue ``(N,)`` (read from the head's extras: what a situation-only text looks like)."""
+    from jgrounding.semantics.structure import FLAGS
+    from jgrounding.vocabulary import NUM_INTENTS
+
+    extras = x[:, 4 * POOL :]
+    lex = extras[:, :NUM_INTENTS]
+    flags = extras[:, 2 * NUM_INTENTS + sh.NUM_DEGREE :]
+    cues = [FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]
+    return (lex.sum(1) == 0) & (flags[:, cues].sum(1) == 0)
+
+
+def gate_vector(num_extras: int) -> np.ndarray:
+    """The extras' columns that must all be zero for the vote to apply ``(E,)`` (as :func:`no_motion_words`)."""
+    from jgrounding.semantics.structure import FLAGS
+    from jgrounding.vocabulary import NUM_INTENTS
+
+    g = np.zeros(num_extras, np.float32)
+    g[:NUM_INTENTS] = 1.0
+    g[[2 * NUM_INTENTS + sh.NUM_DEGREE + FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]] = 1.0
+    return g
+
+
+def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool) -> dict:
+    """Threshold (and optionally a temperature on the blend) fitted on v2 dev; the dev metrics and score."""
+    dev_intent, _ = ts.labels(dev)
+    temperature = 1.0
+    if refit_temperature:
+
+        def sharpen(p, t):
+            q = np.exp(np.log(np.clip(p, 1e-12, 1)) / t)
+            return q / q.sum(1, keepdims=True)
+
+        temperature = sh.fit_temperature(lambda t: sharpen(pm, t), dev_intent)
+        pm, pm_plain = sharpen(pm, temperature), sharpen(pm_plain, temperature)
+    threshold = ts.calibrate_threshold(pm, pz, dev)
+    r = ts.selective(pm, pz, dev, threshold)
+    rp = ts.selective(pm_plain, pz_plain, plain, threshold)
+    m, _, _ = sh.decide(pm, pz)
+    intent, _ = ts.labels(dev)
+    sit = np.array([row.get("style") == "situation" for row in dev])
+    return dict(
+        score=ts.dev_score(r, rp),
+        situation=float(np.mean(m[sit] == intent[sit])),
+        threshold=threshold,
+        blend_temperature=temperature,
+        dev=r,
+        plain_intent=rp["intent_motion"],
+        _m=m,
+    )
+
+
+METRICS = ("intent_motion", "intensity_exact", "intensity_within_one", "coverage_motion", "none_held")
+
+
+def qualifies(v: dict, base: dict) -> bool:
+    """The ship rule: a higher dev score and situation accuracy, no other dev metric worse."""
+    d, b = v["dev"], base["dev"]
+    return (
+        v["score"] > base["score"] + 1e-9
+        and v["situation"] > base["situation"] + 1e-9
+        and all(d[k] >= b[k] - 1e-9 for k in METRICS)
+        and d["confident_wrong"] <= b["confident_wrong"] + 1e-9
+        and d["ece"] <= b["ece"] + 1e-9
+        and v["plain_intent"] >= base["plain_intent"] - 1e-9
+    )
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--report", default=str(REPORT))
+    p.add_argument("--write", action="store_true", help=f"write the chosen variant {CHOSEN} to {sh.KNN_ASSET.name}")
+    args = p.parse_args(argv)
+    head = sh.load()
+    if head.knn is not None:  # compare against the head alone
+        head = sh.Head(
+            head.params, head.config, head.temperature, float(head.meta["threshold"]), head.meta, head.encoder
+        )
+    rows, _ = ts.load_train()
+    files = []
+    for path in sorted(ts.TRAIN_DIR.glob("*.jsonl")):
+        files += [path.name] * len(ts.read_jsonl(path))
+    files = np.array(files)
+    dev, plain = ts.read_jsonl(ts.DEV), ts.read_jsonl(ts.DEV_PLAIN)
+    x_train = head_features(head, [r["text"] for r in rows])
+    x_dev = head_features(head, [r["text"] for r in dev])
+    x_plain = head_features(head, [r["text"] for r in plain])
+    pm_d, pz_d = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_dev, head.temperature))
+    pm_p, pz_p = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_plain, head.temperature))
+    train_intent, _ = ts.labels(rows)
+    style = np.array([r.get("style") or "" for r in rows])
+
+    base = evaluate(pm_d, pz_d, dev, pm_p, pz_p, plain, False)
+    assert base["threshold"] == head.threshold, "the refit must give the shipped head's threshold"
+    print(
+        f"shipped head: score {base['score']:.3f} situation {base['situation']:.3f} "
+        f"thr {base['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in base['dev'].items()})} "
+        f"plain {base['plain_intent']:.3f}",
+        flush=True,
+    )
+    tables = {
+        "all": np.ones(len(rows), bool),
+        "no-generated": files != "generated.jsonl",
+        "situations": style == "situation",
+        "situations+none": (style == "situation") | (train_intent == sh.NONE),
+    }
+    if args.write:
+        return write(head, x_train, train_intent, tables[CHOSEN["table"]], x_dev, x_plain, dev, plain, base)
+    gates = {"always": (np.ones(len(dev), bool), np.ones(len(plain), bool))}
+    gates["no motion words"] = (no_motion_words(x_dev), no_motion_words(x_plain))
+    print(
+        f"no motion words: {gates['no motion words'][0].sum()} of {len(dev)} v2 dev texts, "
+        f"{gates['no motion words'][1].sum()} of {len(plain)} plain dev texts"
+    )
+    variants = []
+    for rep in ("sentence", "chosen", "pools", "hidden"):
+        q_d, q_p, t_all = (representation(rep, head.params, x) for x in (x_dev, x_plain, x_train))
+        for (tname, tmask), (gname, (g_d, g_p)) in itertools.product(tables.items(), gates.items()):
+            if tname.startswith("situations") and gname == "always":
+                continue  # a situation-only table votes for every text only behind the gate
+            for k, tau in itertools.product((5, 10, 20, 40), (0.0, 0.05)):
+                v_d = knn_vote(q_d, t_all[tmask], train_intent[tmask], k, tau)
+                v_p = knn_vote(q_p, t_all[tmask], train_intent[tmask], k, tau)
+                for a, refit in itertools.product((0.1, 0.2, 0.3, 0.5, 0.7), (False, True)):
+                    bd = np.where(g_d[:, None], (1 - a) * pm_d + a * v_d, pm_d)
+                    bp = np.where(g_p[:, None], (1 - a) * pm_p + a * v_p, pm_p)
+                    r = evaluate(bd, pz_d, dev, bp, pz_p, plain, refit)
+                    r |= dict(representation=rep, table=tname, gate=gname, k=k, tau=tau, a=a, refit_temperature=refit)
+                    r["qualifies"] = qualifies(r, base)
+                    variants.append(r)
+    print(f"{len(variants)} variants; {sum(v['qualifies'] for v in variants)} pass the ship rule on dev")
+    keys = ("representation", "table", "gate")
+    best = {}
+    for v in variants:  # best score per (representation, table, gate): what the report's table lists
+        kk = tuple(v[k] for k in keys)
+        if kk not in best or (v["score"], v["situation"]) > (best[kk]["score"], best[kk]["situation"]):
+            best[kk] = v
+    sit = np.array([row.get("style") == "situation" for row in dev])
+    intent, _ = ts.labels(dev)
+    for v in sorted(best.values(), key=lambda v: -v["score"]):
+        d = v["dev"]
+        fixed = [dev[i]["id"] for i in np.where(sit & (v["_m"] == intent) & (base["_m"] != intent))[0]]
+        broke = [dev[i]["id"] for i in np.where((v["_m"] != intent) & (base["_m"] == intent))[0]]
+        print(
+            f"  {v['representation']:8s} {v['table']:15s} {v['gate']:15s} k={v['k']:2d} tau={v['tau']} a={v['a']}"
+            f" T={'fit' if v['refit_temperature'] else '1'}: score {v['score']:.3f} sit {v['situation']:.3f}"
+            f" intent {d['intent_motion']:.3f} exact {d['intensity_exact']:.3f} acted {d['coverage_motion']:.3f}"
+            f" wrong {d['confident_wrong']:.3f} held {d['none_held']:.3f} ECE {d['ece']:.3f}"
+            f" plain {v['plain_intent']:.3f} thr {v['threshold']:.3f} ship={v['qualifies']} fixed {fixed} broke {broke}",
+            flush=True,
+        )
+    strip = lambda v: {k: w for k, w in v.items() if not k.startswith("_")}  # noqa: E731
+    report = {
+        "shipped": strip(base),
+        "best_per_family": [strip(v) for v in sorted(best.values(), key=lambda v: -v["score"])],
+        "qualifying": [strip(v) for v in variants if v["qualifies"]],
+        "num_variants": len(variants),
+    }
+    from jgrounding.io import write_atomic
+
+    write_atomic(args.report, json.dumps(report, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {args.report}")
+    return 0
+
+
+def write(head, x_train, train_intent, mask, x_dev, x_plain, dev, plain, base) -> int:
+    """Write :data:`CHOSEN` as ``assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
+    blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule."""
+    if CHOSEN["representation"] != "sentence":
+        raise SystemExit("the shipped blend reads the tuned sentence vector only")
+    table = representation("sentence", head.params, x_train[mask]).astype(np.float16)
+    labels = train_intent[mask]
+    gate = gate_vector(x_dev.shape[1] - 4 * POOL)
+    meta = dict(k=CHOSEN["k"], tau=CHOSEN["tau"], a=CHOSEN["a"], head_digest=head.meta["params_digest"])
+    knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
+    knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
+
+    def probs(x):
+        pm, pz = (np.asarray(a, np.float64) for a in sh.predict(head.params, x, head.temperature))
+        pm = np.asarray(sh.knn_blend(knn, pm.astype(np.float32), x[:, :POOL], x[:, 4 * POOL :], CHOSEN["k"]))
+        return pm.astype(np.float64), pz
+
+    r = evaluate(*probs(x_dev), dev, *probs(x_plain), plain, False)
+    ok = qualifies(r, base)
+    d = r["dev"]
+    print(
+        f"chosen {CHOSEN}: score {r['score']:.3f} situation {r['situation']:.3f} thr {r['threshold']:.3f}"
+        f" {json.dumps({k: round(v, 3) for k, v in d.items()})} plain {r['plain_intent']:.3f}; ship rule: {ok}"
+    )
+    if not ok:
+        raise SystemExit("the chosen variant does not pass the ship rule on dev: nothing written")
+    meta |= dict(
+        threshold=r["threshold"],
+        variant=CHOSEN,
+        rows=int(len(labels)),
+        dev=d,
+        dev_situation=r["situation"],
+        dev_plain_intent=r["plain_intent"],
+        dev_score=r["score"],
+        head_alone={k: base[k] for k in ("score", "situation", "threshold", "dev", "plain_intent")},
+    )
+    path = sh.save_knn(sh.KNN_ASSET, table, labels, gate, meta)
+    print(f"wrote {path} ({len(labels)} rows, digest {sh.knn_digest(table, labels)})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
