@@ -111,13 +111,15 @@ def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], 
         cond = model.intent_emb[ho.intent]
         single = latency.jg_sample_ms(ho.intent, ho.intensity, key, steps=s, reps=reps)
         config = dataclasses.replace(model.trained.sample_config, sampler=None, steps=s)
-        core = latency.core_ms(model.trained, cond, ho.intensity, key, config, reps=reps)
+        core = latency.core_ms(model.trained, cond, ho.intensity, key, config, reps=reps, like_public=True)
         keys = iter(jax.random.split(key, batch_reps + 1))
         many = 1e3 * median_s(
             lambda: sampling.sample(next(keys), list(ho.intent), list(ho.intensity), BATCH // len(ho), steps=s),
             batch_reps,
         )
-        core_b = latency.core_ms(model.trained, cond, ho.intensity, key, config, batch=BATCH, reps=batch_reps)
+        core_b = latency.core_ms(
+            model.trained, cond, ho.intensity, key, config, batch=BATCH, reps=batch_reps, like_public=True
+        )
         gflop = flops_per_sample(model, s) * BATCH / 1e9
         rate = gflop / (many / 1e3)
         name = Path(model.name).name
@@ -155,10 +157,17 @@ def fixed_cost(lib, steps: int, reps: int) -> list[str]:
         del current
         return tr.actuation(jax.random.fold_in(k, first), emb[intent], intensity, config, params=params)
 
-    raw = jax.jit(ungated)
-    gated = jax.jit(lambda current, *a: safety.make_safe(ungated(current, *a), safety.MAX_SLEW, current))
-    trivial = jax.jit(lambda current, intent, intensity, first, k: current + first)
-    rng = jax.jit(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, tr.dim)))
+    def compiled(fn, *example):  # ahead of time, on the runtime jg.sample uses for one trajectory
+        lowered = jax.jit(fn).lower(*example)
+        try:
+            return lowered.compile(sampling.compiler_options(1))
+        except Exception:  # an XLA without the option: the default runtime, as jg.sample falls back to
+            return lowered.compile()
+
+    raw = compiled(ungated, *args)
+    gated = compiled(lambda current, *a: safety.make_safe(ungated(current, *a), safety.MAX_SLEW, current), *args)
+    trivial = compiled(lambda current, intent, intensity, first, k: current + first, *args)
+    rng = compiled(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, tr.dim)), key, args[3])
     out = program.compiled(*args)
     fresh = [jnp.array(out) + 0 for _ in range(reps + 1)]
     it = iter(fresh)

@@ -82,25 +82,43 @@ def batch_ms(
     return _median_ms(lambda k: model.sample(k, list(intent), list(intensity), num_samples, config), keys)
 
 
-def core_fn(trained: Trained, config: SampleConfig | None = None):
+def core_fn(trained: Trained, config: SampleConfig | None = None, *, example: tuple | None = None):
     """Compiled ``(cond (B, 384), intensity (B,), key) -> u (B, 150, N_u)``, gated (:meth:`Trained.sample`),
-    seed 0's parameters as constants, no seed axis; ``config`` default: the model's own."""
+    seed 0's parameters as constants, no seed axis; ``config`` default: the model's own. With ``example``
+    (arguments of the shape it will get), compiled ahead of time with the XLA options ``jg.sample`` uses for
+    that many trajectories (:func:`sampling.compiler_options`), so the two run on the same runtime."""
     params = trained.seed_params(0)
-    return jax.jit(lambda cond, intensity, key: trained.sample(key, cond, intensity, config, params=params))
+    fn = jax.jit(lambda cond, intensity, key: trained.sample(key, cond, intensity, config, params=params))
+    if example is None:
+        return fn
+    lowered = fn.lower(*example)
+    try:
+        return lowered.compile(sampling.compiler_options(len(example[0])))
+    except Exception:  # an XLA without the option: the default runtime, as jg.sample falls back to
+        return lowered.compile()
 
 
 def core_ms(
-    trained: Trained, cond, intensity, key, config: SampleConfig | None = None, *, batch: int = 1, reps: int = 200
+    trained: Trained,
+    cond,
+    intensity,
+    key,
+    config: SampleConfig | None = None,
+    *,
+    batch: int = 1,
+    reps: int = 200,
+    like_public: bool = False,
 ) -> float:
     """Median warm wall time (ms) of the compiled core for ``batch`` trajectories per call, cycling through
-    ``cond (N, 384)``, ``intensity (N,)``; inputs and keys on the device before the clock."""
-    fn = core_fn(trained, config)
+    ``cond (N, 384)``, ``intensity (N,)``; inputs and keys on the device before the clock. ``like_public``:
+    compiled with the XLA options ``jg.sample`` uses for ``batch`` (the benchmark's public/core ratio)."""
     n = len(cond)
     keys = jax.random.split(key, reps)
     rows = [np.arange(i * batch, (i + 1) * batch) % n for i in range(reps)]
     calls = [
         (jnp.asarray(cond[r], jnp.float32), jnp.asarray(intensity[r], jnp.int32), keys[i]) for i, r in enumerate(rows)
     ]
+    fn = core_fn(trained, config, example=calls[0] if like_public else None)
     return _median_ms(fn, calls)
 
 

@@ -42,6 +42,14 @@ MAX_TRAJECTORIES = 1 << 18  # N x K per call (~630 MB of float32 output)
 BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256, 640)  # compiled batch sizes; larger calls run chunks of 640
 CLASSIC_RUNTIME = {"xla_cpu_use_thunk_runtime": False}  # XLA's classic CPU runtime, per executable
 CLASSIC_MAX_BUCKET = 1  # single trajectories (the latency path) are compiled for it
+
+
+def compiler_options(bucket: int) -> dict | None:
+    """XLA options of the program for ``bucket`` trajectories per call: the classic CPU runtime for a single
+    trajectory on the CPU, else the defaults (benchmarks compile what they compare against with the same)."""
+    return CLASSIC_RUNTIME if bucket <= CLASSIC_MAX_BUCKET and jax.default_backend() == "cpu" else None
+
+
 # (checkpoint, sampler, steps, bucket) -> times traced; a test checks repeated calls trace once.
 TRACES: collections.Counter = collections.Counter()
 
@@ -106,7 +114,7 @@ class Model:
             # A single trajectory (the latency path) runs on XLA's classic CPU runtime: on 2 cores 2-3x faster
             # than the thunk runtime (0.031 vs 0.110 ms at S = 2); batches, as fast or faster on the thunk
             # runtime and compiled faster there, keep the default (docs/how_it_works.md, "Latency").
-            options = CLASSIC_RUNTIME if bucket <= CLASSIC_MAX_BUCKET and jax.default_backend() == "cpu" else None
+            options = compiler_options(bucket)
             try:
                 self._programs[cache_key] = gated.specialize(*example, compiler_options=options)
             except Exception:  # an XLA without the option: the default runtime (the same results)
