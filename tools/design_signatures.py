@@ -74,9 +74,10 @@ def refine(
         s = LEVELS[zi][:, None, None]
         x = (1 - s) * code[mi, vi, 0] + s * code[mi, vi, 1]  # (n, 4, 4)
         diff = x[:, None] - x[None]
-        d = np.sqrt(np.einsum("abjp,pq,abjq->ab", diff, gram, diff) / 4 + 1e-12)
+        gdiff = diff @ gram  # (n, n, 4, 4): the Gram matrix is symmetric, so this serves both sums below
+        d = np.sqrt((diff * gdiff).sum(axis=(2, 3)) / 4 + 1e-12)
         coef = -weight * np.maximum(target - d, 0.0) / d / 2.0
-        gx = 2.0 * np.einsum("ab,pq,abjq->ajp", coef, gram, diff)
+        gx = 2.0 * (coef[:, None, :] @ gdiff.reshape(len(idx), len(idx), -1)).reshape(x.shape)  # sum over b
         grad = np.zeros_like(code)
         np.add.at(grad, (mi, vi, 0), (1 - s) * gx)
         np.add.at(grad, (mi, vi, 1), s * gx)
