@@ -1,4 +1,5 @@
-"""Small shared utilities with no dependency on the rest of the package: atomic writes and hashes."""
+"""Small shared utilities with no dependency on the rest of the package: atomic writes, hashes and the folder
+where compiled programs persist."""
 
 from __future__ import annotations
 
@@ -59,3 +60,15 @@ def _sha256(path: str, mtime_ns: int, size: int, chunk: int = 1 << 20) -> str:
         for block in iter(lambda: f.read(chunk), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def cache_dir() -> Path | None:
+    """Where compiled XLA programs persist between processes (and between clones of the repository on one
+    machine): ``$JGROUNDING_CACHE/jax``, else ``$XDG_CACHE_HOME/jgrounding/jax`` (``~/.cache/jgrounding/jax``);
+    ``JGROUNDING_CACHE=off`` turns it off (None). JAX keys every entry by the program and compiler, so clones
+    with different code never share a wrong program."""
+    root = os.environ.get("JGROUNDING_CACHE")
+    if root and root.lower() in ("off", "0", "none", "false"):
+        return None
+    base = Path(root) if root else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jgrounding"
+    return base / "jax"

@@ -1,12 +1,20 @@
+import importlib.util
 import os
 from pathlib import Path
 
+# jgrounding/io.py alone (importing the package would import jax before the environment below is set)
+_spec = importlib.util.spec_from_file_location("_jg_io", Path(__file__).resolve().parents[1] / "jgrounding" / "io.py")
+_io = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_io)
+
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
-# One persistent compilation cache for the whole run: both pytest-xdist workers and every subprocess a test starts
-# (the CLI, training, the sharded and resumed runs) load what another already compiled instead of compiling it
-# again. In the repository's ignored .cache/ (where the MJX test keeps its programs), so a fresh clone starts cold.
-os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".cache" / "jax"))
-os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.25")
+# One persistent compilation cache for the whole run, the machine's (jgrounding.io.cache_dir(), where grounding and
+# the MJX engine keep theirs): both pytest-xdist workers and every subprocess a test starts (the CLI, training, the
+# sharded and resumed runs) load what another already compiled instead of compiling it again.
+# JGROUNDING_CACHE=off runs everything cold.
+if _io.cache_dir() is not None:
+    os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_io.cache_dir()))
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.25")
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

@@ -34,16 +34,10 @@ def model_dir():
 
 
 def cache_dir():
-    """Where compiled programs persist between processes: ``$JGROUNDING_CACHE/jax``, else
-    ``$XDG_CACHE_HOME/jgrounding/jax`` (``~/.cache/jgrounding/jax``); ``JGROUNDING_CACHE=off`` turns it off."""
-    import os
-    from pathlib import Path
+    """Where compiled programs persist between processes (:func:`jgrounding.io.cache_dir`)."""
+    from jgrounding import io
 
-    root = os.environ.get("JGROUNDING_CACHE")
-    if root and root.lower() in ("off", "0", "none", "false"):
-        return None
-    base = Path(root) if root else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jgrounding"
-    return base / "jax"
+    return io.cache_dir()
 
 
 @functools.lru_cache(maxsize=1)

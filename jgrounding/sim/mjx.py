@@ -29,14 +29,18 @@ from mujoco import mjx
 # MJX 3.3.7 has no public contact-force function; this one private helper is isolated in _user_force.
 from mujoco.mjx._src import support as mjx_support  # contact_force_dim: pyramid -> normal force
 
+from jgrounding import io
 from jgrounding.sim import measures
 from jgrounding.sim.native import load_model
 
-CACHE_DIR = Path(__file__).resolve().parents[2] / ".cache" / "jax"
 
-
-def enable_compilation_cache(path: str | Path = CACHE_DIR) -> None:
-    """Turn on JAX's persistent compilation cache (compiled MJX rollouts survive the process)."""
+def enable_compilation_cache(path: str | Path | None = None) -> None:
+    """Turn on JAX's persistent compilation cache in ``path`` (default: the machine's,
+    :func:`jgrounding.io.cache_dir`; nothing when ``JGROUNDING_CACHE=off``), so a compiled MJX rollout survives
+    the process: compiled once per machine, not once per process or clone."""
+    path = path if path is not None else io.cache_dir()
+    if path is None:
+        return
     Path(path).mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
