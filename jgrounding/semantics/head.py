@@ -235,6 +235,9 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
     def blend(p):
         sim = sentence @ knn["table"].T.astype(jnp.float32)
         best, idx = jax.lax.top_k(sim, k)
+        # An identity that keeps XLA's CPU top-k kernel: with the slice below fused onto its output the vote
+        # took 0.50 ms instead of 0.14 ms (measured on 2 cores, 3,064 x 384 table).
+        best = jax.lax.optimization_barrier(best)
         w = jnp.exp((best - best[:, :1]) / knn["tau"])
         vote = jnp.einsum("bk,bkc->bc", w, knn["onehot"][idx]) / jnp.sum(w, 1, keepdims=True)
         return jnp.where(situation[:, None], (1.0 - knn["a"]) * p + knn["a"] * vote, p)
