@@ -37,7 +37,8 @@ def test_regeneration_is_byte_identical(tmp_path):
 
 
 def test_another_seed_gives_another_library(tmp_path):
-    cfg = library.BuildConfig(seed=1, realizations=2, eval_realizations=2)  # small: only the seed matters here
+    # small (2 + 2 realizations per tuple, 4 candidates per screening round): only the seed matters here
+    cfg = library.BuildConfig(seed=1, realizations=2, eval_realizations=2, candidates_per_round=4)
     arrays, _ = library.build(cfg, progress=False)
     with np.load(library.DEFAULT_PATH) as shipped:  # seed 0; the first record is the same tuple's first realization
         assert arrays["u"].shape[1:] == shipped["u"].shape[1:]
