@@ -134,14 +134,18 @@ def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], 
     return lines, out
 
 
-def fixed_cost(lib, steps: int, reps: int) -> list[str]:
-    """The fixed cost of one single-trajectory call at ``steps``, taken apart (medians of ``reps``)."""
-    ho = lib.heldout
-    path = sampling.shipped_checkpoint(steps)
-    model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
-    m, z = int(ho.intent[0]), int(ho.intensity[0])
-    key = jax.random.key(0)
-    program = model.program(model.config(None, steps), 1, continuity=True)
+def _compiled_single(fn, *example):
+    """``fn`` compiled ahead of time on the runtime ``jg.sample`` uses for one trajectory."""
+    lowered = jax.jit(fn).lower(*example)
+    try:
+        return lowered.compile(sampling.compiler_options(1))
+    except Exception:  # an XLA without the option: the default runtime, as jg.sample falls back to
+        return lowered.compile()
+
+
+def _single_parts(model, steps: int, m: int, z: int, key):
+    """``(args, ungated)``: the arguments of ``model``'s single-trajectory program at ``steps`` and its network +
+    spline without the gate, compiled like it (seed 0's parameters, the tuple's conditioning gathered inside)."""
     args = (
         jax.device_put(np.zeros(model.trained.num_tendons, np.float32)),
         *jax.device_put((np.array([m], np.int32), np.array([z], np.int32))),
@@ -157,17 +161,34 @@ def fixed_cost(lib, steps: int, reps: int) -> list[str]:
         del current
         return tr.actuation(jax.random.fold_in(k, first), emb[intent], intensity, config, params=params)
 
-    def compiled(fn, *example):  # ahead of time, on the runtime jg.sample uses for one trajectory
-        lowered = jax.jit(fn).lower(*example)
-        try:
-            return lowered.compile(sampling.compiler_options(1))
-        except Exception:  # an XLA without the option: the default runtime, as jg.sample falls back to
-            return lowered.compile()
+    return args, ungated
 
-    raw = compiled(ungated, *args)
-    gated = compiled(lambda current, *a: safety.make_safe(ungated(current, *a), safety.MAX_SLEW, current), *args)
-    trivial = compiled(lambda current, intent, intensity, first, k: current + first, *args)
-    rng = compiled(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, tr.dim)), key, args[3])
+
+def network_ms(model, steps: int, reps: int, lib=None) -> float:
+    """Median ms of one trajectory's network + spline at ``steps`` alone (no gate, no host work, inputs on the
+    device, the runtime jg.sample uses): the floor that no cut in the sampler's overhead can go below."""
+    ho = (lib or load_library()).heldout
+    args, ungated = _single_parts(model, steps, int(ho.intent[0]), int(ho.intensity[0]), jax.random.key(0))
+    raw = _compiled_single(ungated, *args)
+    return 1e3 * median_s(lambda: jax.block_until_ready(raw(*args)), reps)
+
+
+def fixed_cost(lib, steps: int, reps: int) -> list[str]:
+    """The fixed cost of one single-trajectory call at ``steps``, taken apart (medians of ``reps``)."""
+    ho = lib.heldout
+    path = sampling.shipped_checkpoint(steps)
+    model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
+    m, z = int(ho.intent[0]), int(ho.intensity[0])
+    key = jax.random.key(0)
+    program = model.program(model.config(None, steps), 1, continuity=True)
+    args, ungated = _single_parts(model, steps, m, z, key)
+    tr = model.trained
+    raw = _compiled_single(ungated, *args)
+    gated = _compiled_single(
+        lambda current, *a: safety.make_safe(ungated(current, *a), safety.MAX_SLEW, current), *args
+    )
+    trivial = _compiled_single(lambda current, intent, intensity, first, k: current + first, *args)
+    rng = _compiled_single(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, tr.dim)), key, args[3])
     out = program.compiled(*args)
     fresh = [jnp.array(out) + 0 for _ in range(reps + 1)]
     it = iter(fresh)
