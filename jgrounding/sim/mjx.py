@@ -1,7 +1,7 @@
-"""MJX engine for :func:`jgrounding.sim.rollout`: ``jit(vmap(scan over control steps))``.
+"""MJX engine for :func:`jgrounding.sim.rollout`: ``jit(vmap(scan over physics steps))``.
 
-Each control step holds the command for ``SUBSTEPS`` physics steps (an inner ``lax.scan``); the outer
-scan records the backbone, tendon lengths and the normal force on the user at the end of each control
+Each control step holds the command for ``SUBSTEPS`` physics steps (one flat ``lax.scan`` over every physics
+step); the backbone, tendon lengths and the normal force on the user are read at the end of each control
 step.
 
 Sensors are disabled in the MJX model: everything is read from the state directly. The user force is
@@ -67,17 +67,16 @@ def _compiled(contact: bool):
     def one(u):  # u: (T, 4)
         d0 = mjx.make_data(mx)
 
-        def substep(d, _):
-            return mjx.step(mx, d), None
-
-        def control_step(d, ctrl):
-            d = d.replace(ctrl=ctrl)
-            d, _ = jax.lax.scan(substep, d, None, length=measures.SUBSTEPS)
+        def physics_step(d, ctrl):
+            d = mjx.step(mx, d.replace(ctrl=ctrl))
             points = jnp.concatenate([d.xpos[body_ids], d.site_xpos[tip_id][None]], axis=0)
             return d, (points, d.ten_length, _user_force(mx, d))
 
-        _, out = jax.lax.scan(control_step, d0, u)
-        return out
+        # One flat scan over the T x SUBSTEPS physics steps, each control held SUBSTEPS steps, read at the end of
+        # each control step. Not a scan of control steps around a scan of substeps: XLA compiled that nested form
+        # 2.5x slower (contact-free model 41 s against 16 s, on 2 cores) for the same trajectories (to 2e-7).
+        _, out = jax.lax.scan(physics_step, d0, jnp.repeat(u, measures.SUBSTEPS, axis=0))
+        return jax.tree.map(lambda x: x[measures.SUBSTEPS - 1 :: measures.SUBSTEPS], out)
 
     return jax.jit(jax.vmap(one))
 
