@@ -115,9 +115,10 @@ def pytest_collection_modifyitems(config, items):
 # Each worker takes a whole file at a time, in collection order. Starting the longest files first (LPT
 # scheduling) keeps one long file from starting last and running alone at the end. Seconds per file (calls +
 # fixtures) in `pytest -n 2 --dist loadfile --durations=0` on 2 cores; test_trunk.py's MJX compiles are cold, as
-# on a fresh clone (warm: 33 s). Only the order depends on these: a stale figure costs time, never a test.
+# on a machine's first run (65 s alone since the flat-scan rollout; warm: 33 s). Only the order depends on these: a
+# stale figure costs time, never a test.
 FILE_SECONDS = {
-    "tests/sim/test_trunk.py": 155.0,
+    "tests/sim/test_trunk.py": 75.0,
     "tests/apps/test_cli_end_to_end.py": 104.5,
     "tests/library/test_library_metrics.py": 61.5,
     "tests/serving/test_load_faults.py": 29.6,
