@@ -61,6 +61,20 @@ mx = mjx.put_model(m)
 d = mjx.make_data(mx)
 if what == "step":
     fn = jax.jit(mjx.step)
+elif what in ("nested", "flat"):  # a whole rollout of 2 trunks, 150 control steps x 4 substeps, two program shapes
+    def one(u):
+        d0 = mjx.make_data(mx)
+        if what == "nested":  # a scan of control steps around a scan of substeps
+            def control_step(d, c):
+                d = jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d.replace(ctrl=c), None, length=4)[0]
+                return d, d.xpos
+            return jax.lax.scan(control_step, d0, u)[1]
+        def physics_step(d, c):  # one flat scan over every physics step (jgrounding.sim.mjx)
+            d = mjx.step(mx, d.replace(ctrl=c))
+            return d, d.xpos
+        return jax.lax.scan(physics_step, d0, jax.numpy.repeat(u, 4, axis=0))[1][3::4]
+    fn = jax.jit(jax.vmap(one))
+    d = jax.numpy.zeros((2, 150, 4), jax.numpy.float32)
 else:  # one control step: SUBSTEPS physics steps in a scan, vmapped over 64 trunks
     def ctrl(d):
         return jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d, None, length=4)[0]
@@ -77,7 +91,7 @@ t3 = time.perf_counter()
 for _ in range(20):
     out = compiled(*args)
 jax.block_until_ready(out)
-steps = 1 if what == "step" else 4 * 64
+steps = {"step": 1, "nested": 2 * 600, "flat": 2 * 600}.get(what, 4 * 64)
 print(t1 - t, t2 - t1, 20 * steps / (time.perf_counter() - t3))
 """
 COMPILE_VARIANTS = (  # (label, contact, pairs, what)
@@ -91,6 +105,20 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what)
         "scan",
     ),
     (f"{tm.NUM_SEGMENTS} pairs (every segment), vmap(64) of a scan of 4 substeps", "1", str(tm.NUM_SEGMENTS), "scan"),
+    ("no contact pairs, rollout of 2: scan of 150 control steps around a scan of 4 substeps", "0", "0", "nested"),
+    ("no contact pairs, rollout of 2: one flat scan of 600 physics steps (jgrounding.sim.mjx)", "0", "0", "flat"),
+    (
+        f"{tm.CONTACT_SEGMENTS} pairs (shipped model), rollout of 2: nested scans",
+        "1",
+        str(tm.CONTACT_SEGMENTS),
+        "nested",
+    ),
+    (
+        f"{tm.CONTACT_SEGMENTS} pairs (shipped model), rollout of 2: one flat scan",
+        "1",
+        str(tm.CONTACT_SEGMENTS),
+        "flat",
+    ),
 )
 
 

@@ -73,8 +73,9 @@ def _compiled(contact: bool):
             return d, (points, d.ten_length, _user_force(mx, d))
 
         # One flat scan over the T x SUBSTEPS physics steps, each control held SUBSTEPS steps, read at the end of
-        # each control step. Not a scan of control steps around a scan of substeps: XLA compiled that nested form
-        # 2.5x slower (contact-free model 41 s against 16 s, on 2 cores) for the same trajectories (to 2e-7).
+        # each control step. Not a scan of control steps around a scan of substeps: for the shipped model XLA traced
+        # and compiled that nesting in 13.6 + 37.0 s against 9.1 + 19.1 s flat (results/bench_trunk_compile.md),
+        # at the price of a slower small batch on the CPU (2 trunks: 6,315 against 7,874 physics steps/s).
         _, out = jax.lax.scan(physics_step, d0, jnp.repeat(u, measures.SUBSTEPS, axis=0))
         return jax.tree.map(lambda x: x[measures.SUBSTEPS - 1 :: measures.SUBSTEPS], out)
 
