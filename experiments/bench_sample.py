@@ -136,11 +136,7 @@ def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], 
 
 def _compiled_single(fn, *example):
     """``fn`` compiled ahead of time on the runtime ``jg.sample`` uses for one trajectory."""
-    lowered = jax.jit(fn).lower(*example)
-    try:
-        return lowered.compile(sampling.compiler_options(1))
-    except Exception:  # an XLA without the option: the default runtime, as jg.sample falls back to
-        return lowered.compile()
+    return sampling.compile_for(jax.jit(fn).lower(*example), 1)
 
 
 def _single_parts(model, steps: int, m: int, z: int, key):
@@ -189,12 +185,12 @@ def fixed_cost(lib, steps: int, reps: int) -> list[str]:
     )
     trivial = _compiled_single(lambda current, intent, intensity, first, k: current + first, *args)
     rng = _compiled_single(lambda k, first: jax.random.normal(jax.random.fold_in(k, first), (1, tr.dim)), key, args[3])
-    out = program.compiled(*args)
+    out = program.executable(*args)
     fresh = [jnp.array(out) + 0 for _ in range(reps + 1)]
     it = iter(fresh)
     t = {
         "public": median_s(lambda: model.sample(key, m, z, 1, model.config(None, steps)), reps),
-        "compiled": median_s(lambda: jax.block_until_ready(program.compiled(*args)), reps),
+        "compiled": median_s(lambda: jax.block_until_ready(program.executable(*args)), reps),
         "ungated": median_s(lambda: jax.block_until_ready(raw(*args)), reps),
         "gated": median_s(lambda: jax.block_until_ready(gated(*args)), reps),
         "dispatch": median_s(lambda: jax.block_until_ready(trivial(*args)), reps),

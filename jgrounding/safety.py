@@ -180,12 +180,13 @@ def gated(fn, *, continuity: bool = False):
     def call(*args) -> np.ndarray:
         return release(compiled(*args))
 
-    def specialize(*example, compiler_options: dict | None = None):
+    def specialize(*example, compile=None):
         """``call`` compiled ahead of time for arguments shaped and typed like ``example``: the XLA executable
         is called directly (no tracing, no jit dispatch). Arguments of another type (e.g. a key of another
         PRNG implementation) go through the jitted function; either way the result leaves through
-        :func:`release`. ``compiler_options``: XLA options of this executable only."""
-        executable = compiled.lower(*example).compile(compiler_options=compiler_options)
+        :func:`release`. ``compile``: how to compile the lowered program (default: ``Lowered.compile()``)."""
+        lowered = compiled.lower(*example)
+        executable = lowered.compile() if compile is None else compile(lowered)
 
         def run(*args) -> np.ndarray:
             try:

@@ -86,16 +86,12 @@ def core_fn(trained: Trained, config: SampleConfig | None = None, *, example: tu
     """Compiled ``(cond (B, 384), intensity (B,), key) -> u (B, 150, N_u)``, gated (:meth:`Trained.sample`),
     seed 0's parameters as constants, no seed axis; ``config`` default: the model's own. With ``example``
     (arguments of the shape it will get), compiled ahead of time with the XLA options ``jg.sample`` uses for
-    that many trajectories (:func:`sampling.compiler_options`), so the two run on the same runtime."""
+    that many trajectories (:func:`sampling.compile_for`), so the two run on the same runtime."""
     params = trained.seed_params(0)
     fn = jax.jit(lambda cond, intensity, key: trained.sample(key, cond, intensity, config, params=params))
     if example is None:
         return fn
-    lowered = fn.lower(*example)
-    try:
-        return lowered.compile(sampling.compiler_options(len(example[0])))
-    except Exception:  # an XLA without the option: the default runtime, as jg.sample falls back to
-        return lowered.compile()
+    return sampling.compile_for(fn.lower(*example), len(example[0]))
 
 
 def core_ms(

@@ -50,6 +50,16 @@ def compiler_options(bucket: int) -> dict | None:
     return CLASSIC_RUNTIME if bucket <= CLASSIC_MAX_BUCKET and jax.default_backend() == "cpu" else None
 
 
+def compile_for(lowered, bucket: int):
+    """``lowered`` (a ``jax.stages.Lowered``) compiled as jg.sample compiles its program for ``bucket``
+    trajectories per call (:func:`compiler_options`); on an XLA without those options, with the defaults (the
+    same results)."""
+    try:
+        return lowered.compile(compiler_options(bucket))
+    except Exception:  # an XLA without the option
+        return lowered.compile()
+
+
 # (checkpoint, sampler, steps, bucket) -> times traced; a test checks repeated calls trace once.
 TRACES: collections.Counter = collections.Counter()
 
@@ -114,11 +124,7 @@ class Model:
             # A single trajectory (the latency path) runs on XLA's classic CPU runtime: on 2 cores 2-3x faster
             # than the thunk runtime (0.031 vs 0.110 ms at S = 2); batches, as fast or faster on the thunk
             # runtime and compiled faster there, keep the default (docs/how_it_works.md, "Latency").
-            options = compiler_options(bucket)
-            try:
-                self._programs[cache_key] = gated.specialize(*example, compiler_options=options)
-            except Exception:  # an XLA without the option: the default runtime (the same results)
-                self._programs[cache_key] = gated.specialize(*example)
+            self._programs[cache_key] = gated.specialize(*example, compile=lambda lowered: compile_for(lowered, bucket))
         return self._programs[cache_key]
 
     def temperature(self, steps: int) -> float:

@@ -229,11 +229,11 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
     Args: knn (:func:`load_knn`: ``table`` ``(N, 384)`` unit vectors, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``
     0/1 over the extras' columns that must be zero, ``tau``, ``a``); p_intent ``(B, 17)``; sentence ``(B, 384)``
     unit vectors; extras ``(B, E)``. Returns ``(B, 17)``."""
-    knn = {k: jnp.asarray(v) for k, v in knn.items() if k != "meta"}
+    knn = jax.tree.map(jnp.asarray, knn)  # numpy tables too (tools.semantics_knn, tests): indexed by traced indices
     situation = jnp.sum(jnp.abs(extras) * knn["gate"], 1) == 0
 
     def blend(p):
-        sim = sentence @ knn["table"].T.astype(jnp.float32)
+        sim = sentence @ knn["table"].T
         best, idx = jax.lax.top_k(sim, k)
         # An identity that keeps XLA's CPU top-k kernel: with the slice below fused onto its output the vote
         # took 0.50 ms instead of 0.14 ms (measured on 2 cores, 3,064 x 384 table).
@@ -375,13 +375,9 @@ class Head:
         """How many neighbours the vote reads (0: no vote)."""
         return int(self.knn["meta"]["k"]) if self.knn else 0
 
-    @functools.cached_property
-    def _knn_arrays(self) -> dict | None:
-        return {k: v for k, v in self.knn.items() if k != "meta"} if self.knn else None
-
     def knn_arrays(self) -> dict | None:
-        """The vote's arrays as :func:`predict_tuned` takes them (None: no vote)."""
-        return self._knn_arrays
+        """The vote's device arrays as :func:`predict_tuned` takes them (None: no vote)."""
+        return self.knn["arrays"] if self.knn else None
 
     def encoder_params(self) -> dict:
         """The encoder weights this head reads (the frozen MiniLM, or with its tuned top layers)."""
@@ -442,8 +438,9 @@ def save_knn(path, table, labels, gate, meta: dict) -> Path:
 
 def load_knn(head_digest: str, path=None) -> dict | None:
     """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
-    missing or was made for another head): device arrays ``table`` ``(N, 384)`` (stored float16), ``onehot`` ``(N, 17)``,
-    ``gate`` ``(E,)``, scalars ``tau`` and ``a``, and its ``meta``. ``ValueError`` when its digest does not match."""
+    missing or was made for another head): ``arrays``, the device arrays :func:`knn_blend` reads (``table``
+    ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``), and its
+    ``meta``. ``ValueError`` when its digest does not match."""
     path = Path(path or KNN_ASSET)
     if not path.exists():
         return None
@@ -466,7 +463,7 @@ def load_knn(head_digest: str, path=None) -> dict | None:
             "a": np.float32(meta["a"]),
         }
     )
-    return arrays | {"meta": meta}
+    return {"arrays": arrays, "meta": meta}
 
 
 def digest(params: dict) -> str:
