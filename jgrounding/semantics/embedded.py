@@ -415,7 +415,12 @@ def degree_estimate(text: str) -> float | None:
     """
     votes = []
     spans = []
+    # Substring presence is a cheap necessary condition for an ASCII text (case-insensitive matching of other
+    # scripts can fold characters, so those read every pattern): most texts hold a few of the ~120 cue words.
+    lower = text.lower() if text.isascii() else None
     for level, word, pattern in _DEGREE_RE:
+        if lower is not None and word not in lower:
+            continue
         for hit in pattern.finditer(text):
             if any(a <= hit.start() < b for a, b in spans):  # "a tiny bit" already counted, skip "a bit"
                 continue
@@ -566,6 +571,8 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
     one compiled program per batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head
     together, with the head's nearest-neighbour vote when it has one (:attr:`head.Head.knn`), so one text costs one
     dispatch."""
+    import jax
+
     from jgrounding.semantics import head as semantic_head
     from jgrounding.semantics import structure
 
@@ -580,7 +587,7 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
         probs = semantic_head.predict_tuned(
             enc_params, head.params, ids, mask, pools, x, head.temperature, head.knn_arrays(), knn_k=head.knn_k
         )
-        probs = [np.asarray(a)[: len(idx)] for a in probs]
+        probs = [a[: len(idx)] for a in jax.device_get(probs)]  # one wait for the program, three copies
         if out is None:
             out = [np.zeros((len(texts), a.shape[1]), np.float32) for a in probs]
         for o, a in zip(out, probs):

@@ -154,15 +154,20 @@ def _rejected_spans(text: str) -> list[tuple[int, int]]:
     return spans
 
 
+def _quote_pattern(open_q: str, close_q: str) -> re.Pattern:
+    if open_q == "'":  # apostrophes: a quote opens after a space or start and closes before one or the end
+        return re.compile(r"(?:(?<=^)|(?<=[\s(:]))'([^']{2,}?)'(?=$|[\s.,;:!?)])")
+    return re.compile(re.escape(open_q) + r"([^" + re.escape(open_q + close_q) + r"]{1,}?)" + re.escape(close_q))
+
+
+_QUOTE_RE = tuple((open_q, _quote_pattern(open_q, close_q)) for open_q, close_q in _QUOTE_PAIRS)
+
+
 def _quoted_spans(text: str) -> list[tuple[int, int]]:
     spans = []
-    for open_q, close_q in _QUOTE_PAIRS:
-        if open_q == "'":  # apostrophes: a quote opens after a space or start and closes before one or the end
-            pattern = re.compile(r"(?:(?<=^)|(?<=[\s(:]))'([^']{2,}?)'(?=$|[\s.,;:!?)])")
-        else:
-            pattern = re.compile(
-                re.escape(open_q) + r"([^" + re.escape(open_q + close_q) + r"]{1,}?)" + re.escape(close_q)
-            )
+    for open_q, pattern in _QUOTE_RE:
+        if open_q not in text:  # no opening mark, no quote of this kind
+            continue
         for m in pattern.finditer(text):
             if not any(a <= m.start() < b for a, b in spans):
                 spans.append((m.start(1), m.end(1)))
