@@ -33,11 +33,18 @@ from tools import train_semantics as ts
 
 ROOT = ts.ROOT
 REPORT = ROOT / "results" / "semantics_dev_knn.json"
+# Situation-only texts written for selection by a writer who saw neither the code, the training corpora nor the
+# evaluation sets: v2 dev holds 29 situations, too few to tell tables apart. Read here, never trained on.
+HOLDOUT = ROOT / "assets" / "semantics_dev_situations.jsonl"
 POOL = sh.EMBED_DIM
-# The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
-# corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
-# this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
-CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5)
+# The shipped variant (with the head retrained on the second situations corpus): the tuned chosen-part vector (the
+# text without the reaction it rejects); the table without the templated generated corpus; the vote for every text;
+# k = 20 and a = 0.5, inside the (k, a) grid, not on its edge; a temperature on the blend and the threshold fitted on v2 dev.
+# Of the 2,560 variants, the one that is no worse than the system shipped before on any v2 dev metric and better on
+# the situation hold-out (docs/how_it_works.md has the table and the neighbourhood).
+CHOSEN = dict(
+    representation="chosen", table="no-generated", gate="always", k=20, tau=0.05, a=0.5, refit_temperature=True
+)
 
 
 def head_features(head, texts: list[str], cache_dir=ts.CACHE) -> np.ndarray:
@@ -113,21 +120,28 @@ def gate_vector(num_extras: int) -> np.ndarray:
     return g
 
 
-def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool) -> dict:
-    """Threshold (and optionally a temperature on the blend) fitted on v2 dev; the dev metrics and score."""
+def sharpen(p: np.ndarray, t: float) -> np.ndarray:
+    """A temperature on a distribution ``(N, C)``: p^(1/t), renormalised (:func:`jgrounding.semantics.head.knn_blend`
+    applies the same to the shipped blend)."""
+    q = np.exp(np.log(np.clip(p, 1e-12, 1)) / t)
+    return q / q.sum(1, keepdims=True)
+
+
+def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, held=None) -> dict:
+    """Threshold (and optionally a temperature on the blend) fitted on v2 dev; the dev metrics and score.
+    ``held``: ``(p_intent, p_intensity, rows)`` of the situation hold-out, scored at the same threshold."""
     dev_intent, _ = ts.labels(dev)
     temperature = 1.0
     if refit_temperature:
-
-        def sharpen(p, t):
-            q = np.exp(np.log(np.clip(p, 1e-12, 1)) / t)
-            return q / q.sum(1, keepdims=True)
-
         temperature = sh.fit_temperature(lambda t: sharpen(pm, t), dev_intent)
         pm, pm_plain = sharpen(pm, temperature), sharpen(pm_plain, temperature)
     threshold = ts.calibrate_threshold(pm, pz, dev)
     r = ts.selective(pm, pz, dev, threshold)
     rp = ts.selective(pm_plain, pz_plain, plain, threshold)
+    holdout = None
+    if held is not None:
+        hm, hz, hrows = held
+        holdout = ts.selective(sharpen(hm, temperature) if refit_temperature else hm, hz, hrows, threshold)
     m, _, _ = sh.decide(pm, pz)
     intent, _ = ts.labels(dev)
     sit = np.array([row.get("style") == "situation" for row in dev])
@@ -138,6 +152,7 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool) ->
         blend_temperature=temperature,
         dev=r,
         plain_intent=rp["intent_motion"],
+        holdout=holdout,
         _m=m,
     )
 
@@ -146,11 +161,21 @@ METRICS = ("intent_motion", "intensity_exact", "intensity_within_one", "coverage
 
 
 def qualifies(v: dict, base: dict) -> bool:
-    """The ship rule: a higher dev score and situation accuracy, no other dev metric worse."""
+    """The ship rule against the head alone: a higher dev score and no dev metric worse, situation accuracy
+    included; with the situation hold-out (:data:`HOLDOUT`), a higher hold-out intent accuracy and confident wrong
+    motions no more frequent there; without it, a higher dev situation accuracy (29 dev texts: one text is 0.034)."""
     d, b = v["dev"], base["dev"]
+    if v.get("holdout") is not None and base.get("holdout") is not None:
+        h, hb = v["holdout"], base["holdout"]
+        better_situations = (
+            h["intent_motion"] > hb["intent_motion"] + 1e-9 and h["confident_wrong"] <= hb["confident_wrong"] + 1e-9
+        )
+        better_situations = better_situations and v["situation"] >= base["situation"] - 1e-9
+    else:
+        better_situations = v["situation"] > base["situation"] + 1e-9
     return (
-        v["score"] > base["score"] + 1e-9
-        and v["situation"] > base["situation"] + 1e-9
+        better_situations
+        and v["score"] > base["score"] + 1e-9
         and all(d[k] >= b[k] - 1e-9 for k in METRICS)
         and d["confident_wrong"] <= b["confident_wrong"] + 1e-9
         and d["ece"] <= b["ece"] + 1e-9
@@ -179,44 +204,51 @@ def main(argv=None) -> int:
     x_plain = head_features(head, [r["text"] for r in plain])
     pm_d, pz_d = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_dev, head.temperature))
     pm_p, pz_p = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_plain, head.temperature))
+    hold = ts.read_jsonl(HOLDOUT) if HOLDOUT.exists() else []
+    x_hold = head_features(head, [r["text"] for r in hold]) if hold else x_dev[:0]
+    pm_h, pz_h = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_hold, head.temperature))
     train_intent, _ = ts.labels(rows)
     style = np.array([r.get("style") or "" for r in rows])
 
-    base = evaluate(pm_d, pz_d, dev, pm_p, pz_p, plain, False)
+    base = evaluate(pm_d, pz_d, dev, pm_p, pz_p, plain, False, held=(pm_h, pz_h, hold) if hold else None)
     assert base["threshold"] == head.threshold, "the refit must give the shipped head's threshold"
     print(
         f"shipped head: score {base['score']:.3f} situation {base['situation']:.3f} "
         f"thr {base['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in base['dev'].items()})} "
-        f"plain {base['plain_intent']:.3f}",
+        f"plain {base['plain_intent']:.3f} {_holdout_line(base)}",
         flush=True,
     )
     tables = {
         "all": np.ones(len(rows), bool),
         "no-generated": files != "generated.jsonl",
+        # The table shipped before the second situations corpus was written (for the comparison).
+        "no-generated-v1": (files != "generated.jsonl") & (files != "situations2.jsonl"),
         "situations": style == "situation",
         "situations+none": (style == "situation") | (train_intent == sh.NONE),
     }
     if args.write:
-        return write(head, x_train, train_intent, tables[CHOSEN["table"]], x_dev, x_plain, dev, plain, base)
-    gates = {"always": (np.ones(len(dev), bool), np.ones(len(plain), bool))}
-    gates["no motion words"] = (no_motion_words(x_dev), no_motion_words(x_plain))
+        return write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, (x_hold, pz_h, hold))
+    gates = {"always": (np.ones(len(dev), bool), np.ones(len(plain), bool), np.ones(len(hold), bool))}
+    gates["no motion words"] = (no_motion_words(x_dev), no_motion_words(x_plain), no_motion_words(x_hold))
     print(
         f"no motion words: {gates['no motion words'][0].sum()} of {len(dev)} v2 dev texts, "
         f"{gates['no motion words'][1].sum()} of {len(plain)} plain dev texts"
     )
     variants = []
     for rep in ("sentence", "chosen", "pools", "hidden"):
-        q_d, q_p, t_all = (representation(rep, head.params, x) for x in (x_dev, x_plain, x_train))
-        for (tname, tmask), (gname, (g_d, g_p)) in itertools.product(tables.items(), gates.items()):
+        q_d, q_p, q_h, t_all = (representation(rep, head.params, x) for x in (x_dev, x_plain, x_hold, x_train))
+        for (tname, tmask), (gname, (g_d, g_p, g_h)) in itertools.product(tables.items(), gates.items()):
             if tname.startswith("situations") and gname == "always":
                 continue  # a situation-only table votes for every text only behind the gate
             for k, tau in itertools.product((5, 10, 20, 40), (0.0, 0.05)):
                 v_d = knn_vote(q_d, t_all[tmask], train_intent[tmask], k, tau)
                 v_p = knn_vote(q_p, t_all[tmask], train_intent[tmask], k, tau)
+                v_h = knn_vote(q_h, t_all[tmask], train_intent[tmask], k, tau)
                 for a, refit in itertools.product((0.1, 0.2, 0.3, 0.5, 0.7), (False, True)):
                     bd = np.where(g_d[:, None], (1 - a) * pm_d + a * v_d, pm_d)
                     bp = np.where(g_p[:, None], (1 - a) * pm_p + a * v_p, pm_p)
-                    r = evaluate(bd, pz_d, dev, bp, pz_p, plain, refit)
+                    bh = np.where(g_h[:, None], (1 - a) * pm_h + a * v_h, pm_h)
+                    r = evaluate(bd, pz_d, dev, bp, pz_p, plain, refit, held=(bh, pz_h, hold) if hold else None)
                     r |= dict(representation=rep, table=tname, gate=gname, k=k, tau=tau, a=a, refit_temperature=refit)
                     r["qualifies"] = qualifies(r, base)
                     variants.append(r)
@@ -238,7 +270,8 @@ def main(argv=None) -> int:
             f" T={'fit' if v['refit_temperature'] else '1'}: score {v['score']:.3f} sit {v['situation']:.3f}"
             f" intent {d['intent_motion']:.3f} exact {d['intensity_exact']:.3f} acted {d['coverage_motion']:.3f}"
             f" wrong {d['confident_wrong']:.3f} held {d['none_held']:.3f} ECE {d['ece']:.3f}"
-            f" plain {v['plain_intent']:.3f} thr {v['threshold']:.3f} ship={v['qualifies']} fixed {fixed} broke {broke}",
+            f" plain {v['plain_intent']:.3f} thr {v['threshold']:.3f} {_holdout_line(v)} ship={v['qualifies']}"
+            f" fixed {fixed} broke {broke}",
             flush=True,
         )
     strip = lambda v: {k: w for k, w in v.items() if not k.startswith("_")}  # noqa: E731
@@ -255,32 +288,65 @@ def main(argv=None) -> int:
     return 0
 
 
-def write(head, x_train, train_intent, mask, x_dev, x_plain, dev, plain, base) -> int:
+def _holdout_line(v: dict) -> str:
+    h = v.get("holdout")
+    if h is None:
+        return "hold-out: none"
+    return (
+        f"hold-out intent {h['intent_motion']:.3f} acted {h['coverage_motion']:.3f}"
+        f" wrong {h['confident_wrong']:.3f} exact {h['intensity_exact']:.3f}"
+    )
+
+
+def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, held) -> int:
     """Write :data:`CHOSEN` as ``assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
-    blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule."""
-    if CHOSEN["representation"] != "sentence":
-        raise SystemExit("the shipped blend reads the tuned sentence vector only")
-    table = representation("sentence", head.params, x_train[mask]).astype(np.float16)
-    labels = train_intent[mask]
+    blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule. Every other
+    table is scored the same way first, for the record."""
+    if CHOSEN["representation"] not in sh.KNN_POOLS:
+        raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
+    pool = sh.KNN_POOLS.index(CHOSEN["representation"])
+    x_hold, pz_hold, hold = held
     gate = gate_vector(x_dev.shape[1] - 4 * POOL)
-    meta = dict(k=CHOSEN["k"], tau=CHOSEN["tau"], a=CHOSEN["a"], head_digest=head.meta["params_digest"])
-    knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
-    knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
+    if CHOSEN["gate"] == "always":
+        gate = np.zeros_like(gate)
+    refit = CHOSEN.get("refit_temperature", False)
 
-    def probs(x):
-        pm, pz = (np.asarray(a, np.float64) for a in sh.predict(head.params, x, head.temperature))
-        pm = np.asarray(sh.knn_blend(knn, pm.astype(np.float32), x[:, :POOL], x[:, 4 * POOL :], CHOSEN["k"]))
-        return pm.astype(np.float64), pz
+    def blended(mask):
+        table = representation(CHOSEN["representation"], head.params, x_train[mask]).astype(np.float16)
+        labels = train_intent[mask]
+        knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
+        knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
 
-    r = evaluate(*probs(x_dev), dev, *probs(x_plain), plain, False)
+        def probs(x):
+            pm, pz = (np.asarray(a, np.float64) for a in sh.predict(head.params, x, head.temperature))
+            if len(x):
+                q = x[:, pool * POOL : (pool + 1) * POOL]
+                pm = np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, x[:, 4 * POOL :], CHOSEN["k"]))
+            return pm.astype(np.float64), pz
+
+        h = (*probs(x_hold), hold) if hold else None
+        return table, labels, evaluate(*probs(x_dev), dev, *probs(x_plain), plain, refit, held=h)
+
+    for name, mask in tables.items():
+        if name != CHOSEN["table"]:
+            _, labels, r = blended(mask)
+            print(
+                f"  table {name} ({len(labels)} rows): score {r['score']:.3f} situation {r['situation']:.3f}"
+                f" thr {r['threshold']:.3f} {_holdout_line(r)}"
+            )
+    table, labels, r = blended(tables[CHOSEN["table"]])
     ok = qualifies(r, base)
     d = r["dev"]
     print(
-        f"chosen {CHOSEN}: score {r['score']:.3f} situation {r['situation']:.3f} thr {r['threshold']:.3f}"
-        f" {json.dumps({k: round(v, 3) for k, v in d.items()})} plain {r['plain_intent']:.3f}; ship rule: {ok}"
+        f"chosen {CHOSEN} ({len(labels)} rows): score {r['score']:.3f} situation {r['situation']:.3f}"
+        f" thr {r['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in d.items()})}"
+        f" plain {r['plain_intent']:.3f} {_holdout_line(r)}; ship rule: {ok}"
     )
     if not ok:
         raise SystemExit("the chosen variant does not pass the ship rule on dev: nothing written")
+    meta = dict(k=CHOSEN["k"], tau=CHOSEN["tau"], a=CHOSEN["a"], head_digest=head.meta["params_digest"])
+    meta |= dict(representation=CHOSEN["representation"], gate=CHOSEN["gate"])
+    meta |= dict(temperature=float(r["blend_temperature"]))  # 1: none (sh.knn_blend applies any other)
     meta |= dict(
         threshold=r["threshold"],
         variant=CHOSEN,
@@ -288,6 +354,7 @@ def write(head, x_train, train_intent, mask, x_dev, x_plain, dev, plain, base) -
         dev=d,
         dev_situation=r["situation"],
         dev_plain_intent=r["plain_intent"],
+        holdout=r["holdout"],
         dev_score=r["score"],
         head_alone={k: base[k] for k in ("score", "situation", "threshold", "dev", "plain_intent")},
     )

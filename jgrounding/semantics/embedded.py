@@ -585,7 +585,16 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
         x = np.zeros((len(ids), extras.shape[1]), np.float32)
         x[: len(idx)] = extras[idx]
         probs = semantic_head.predict_tuned(
-            enc_params, head.params, ids, mask, pools, x, head.temperature, head.knn_arrays(), knn_k=head.knn_k
+            enc_params,
+            head.params,
+            ids,
+            mask,
+            pools,
+            x,
+            head.temperature,
+            head.knn_arrays(),
+            knn_k=head.knn_k,
+            knn_pool=head.knn_pool,
         )
         probs = [a[: len(idx)] for a in jax.device_get(probs)]  # one wait for the program, three copies
         if out is None:
@@ -609,7 +618,16 @@ def warmup_tuned(head, max_tokens: int = 128) -> None:
         ids, mask = np.zeros((1, length), np.int32), np.ones((1, length), np.int32)
         pools = np.ones((1, NUM_POOLS, length), np.float32)
         for a in semantic_head.predict_tuned(
-            enc_params, head.params, ids, mask, pools, extras, head.temperature, head.knn_arrays(), knn_k=head.knn_k
+            enc_params,
+            head.params,
+            ids,
+            mask,
+            pools,
+            extras,
+            head.temperature,
+            head.knn_arrays(),
+            knn_k=head.knn_k,
+            knn_pool=head.knn_pool,
         ):
             a.block_until_ready()
 

@@ -215,6 +215,7 @@ def _predict_all(params: dict, x, temperature):
 predict_all = jax.jit(_predict_all)
 
 
+KNN_POOLS = ("sentence", "chosen")  # the pooled vectors a nearest-neighbour table can be made of, by index
 KNN_GATE_FLAGS = ("has_rejected", "log_line", "system_prefix", "not_understood", "background")
 
 
@@ -227,8 +228,9 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
     (cosine), weighted by exp((sim - best sim) / tau).
 
     Args: knn (:func:`load_knn`: ``table`` ``(N, 384)`` unit vectors, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``
-    0/1 over the extras' columns that must be zero, ``tau``, ``a``); p_intent ``(B, 17)``; sentence ``(B, 384)``
-    unit vectors; extras ``(B, E)``. Returns ``(B, 17)``."""
+    0/1 over the extras' columns that must be zero (all zero: every text votes), ``tau``, ``a``, and optionally
+    ``temperature``, applied to the blended distribution of every text); p_intent ``(B, 17)``; sentence
+    ``(B, 384)`` unit vectors; extras ``(B, E)``. Returns ``(B, 17)``."""
     knn = jax.tree.map(jnp.asarray, knn)  # numpy tables too (tools.semantics_knn, tests): indexed by traced indices
     situation = jnp.sum(jnp.abs(extras) * knn["gate"], 1) == 0
 
@@ -243,15 +245,22 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
         return jnp.where(situation[:, None], (1.0 - knn["a"]) * p + knn["a"] * vote, p)
 
     # Most texts name an action: their program skips the table.
-    return jax.lax.cond(jnp.any(situation), blend, lambda p: p, p_intent)
+    p = jax.lax.cond(jnp.any(situation), blend, lambda p: p, p_intent)
+    if "temperature" in knn:  # a temperature fitted on dev to the blended distribution (every text's)
+        q = jnp.exp(jnp.log(jnp.clip(p, 1e-12, 1.0)) / knn["temperature"])
+        p = q / jnp.sum(q, 1, keepdims=True)
+    return p
 
 
-@functools.partial(jax.jit, static_argnames="knn_k")
-def predict_tuned(enc_params: dict, params: dict, ids, mask, pools, extras, temperature, knn=None, knn_k: int = 0):
+@functools.partial(jax.jit, static_argnames=("knn_k", "knn_pool"))
+def predict_tuned(
+    enc_params: dict, params: dict, ids, mask, pools, extras, temperature, knn=None, knn_k: int = 0, knn_pool: int = 0
+):
     """The tuned head's whole grounding of a batch in one compiled program: the encoder (with its tuned top
     layers) pooled four ways (:func:`jgrounding.semantics.encoder.pool_ids`), the pooled vectors next to the
     non-encoder inputs, then :func:`predict_all`, and with ``knn`` (:attr:`Head.knn`) the nearest-neighbour
-    vote blended into the intent probabilities (:func:`knn_blend`, ``knn_k`` neighbours).
+    vote blended into the intent probabilities (:func:`knn_blend`, ``knn_k`` neighbours of the text's pooled
+    vector ``knn_pool``: 0 the whole text, 1 its chosen part).
 
     Args: enc_params (:meth:`Head.encoder_params`); ids, mask ``(B, L)``; pools ``(B, 4, L)``; extras ``(B, E)``
     (:func:`jgrounding.semantics.embedded.tuned_extras`). Returns :func:`predict_all`'s three arrays."""
@@ -261,7 +270,7 @@ def predict_tuned(enc_params: dict, params: dict, ids, mask, pools, extras, temp
     x = jnp.concatenate([pooled.reshape(pooled.shape[0], -1), extras], axis=1)
     p_intent, p_intensity, p_why = _predict_all(params, x, temperature)
     if knn is not None:
-        p_intent = knn_blend(knn, p_intent, pooled[:, 0], extras, knn_k)
+        p_intent = knn_blend(knn, p_intent, pooled[:, knn_pool], extras, knn_k)
     return p_intent, p_intensity, p_why
 
 
@@ -375,6 +384,11 @@ class Head:
         """How many neighbours the vote reads (0: no vote)."""
         return int(self.knn["meta"]["k"]) if self.knn else 0
 
+    @property
+    def knn_pool(self) -> int:
+        """Which pooled vector the vote compares: 0 the whole text, 1 its chosen part (rejected words left out)."""
+        return KNN_POOLS.index(self.knn["meta"].get("representation", "sentence")) if self.knn else 0
+
     def knn_arrays(self) -> dict | None:
         """The vote's device arrays as :func:`predict_tuned` takes them (None: no vote)."""
         return self.knn["arrays"] if self.knn else None
@@ -462,6 +476,7 @@ def load_knn(head_digest: str, path=None) -> dict | None:
             "tau": np.float32(meta["tau"]),
             "a": np.float32(meta["a"]),
         }
+        | ({"temperature": np.float32(meta["temperature"])} if meta.get("temperature", 1.0) != 1.0 else {})
     )
     return {"arrays": arrays, "meta": meta}
 

@@ -44,6 +44,11 @@ def test_bucketed_padding_gives_the_full_length_result(head):
 def test_one_program_equals_the_encoder_then_the_head(head):
     x = embedded.head_inputs(head, TEXTS)  # the two-step path the head was trained and calibrated with
     two_step = [np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature)]
+    if head.knn is not None:  # then the nearest-neighbour vote, as tools.semantics_knn compared it on dev
+        dim = semantic_head.EMBED_DIM
+        query = x[:, head.knn_pool * dim : (head.knn_pool + 1) * dim]
+        vote = semantic_head.knn_blend(head.knn["arrays"], two_step[0], query, x[:, 4 * dim :], head.knn_k)
+        two_step[0] = np.asarray(vote)
     batched = embedded.predict_tuned_many(head, TEXTS)
     alone = [embedded.predict_tuned_many(head, [t]) for t in TEXTS]
     for k in range(3):
