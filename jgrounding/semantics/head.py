@@ -343,7 +343,8 @@ def top_deltas(top: dict, cfg: HeadConfig) -> dict:
 
 
 def with_top(deltas: dict, cfg: HeadConfig) -> dict:
-    """The encoder's weights with its top ``cfg.tuned_layers`` layers replaced by base + ``deltas``.
+    """The encoder's weights with its top ``cfg.tuned_layers`` layers replaced by base + ``deltas``, as grounding
+    reads them: the dense matrices stored in float16 (:func:`jgrounding.semantics.encoder.half_matrices`).
 
     Merged in numpy from the weights file and put on the device in one transfer (no small compiled ops and no
     second copy of the frozen encoder on a fresh process's first call)."""
@@ -355,7 +356,7 @@ def with_top(deltas: dict, cfg: HeadConfig) -> dict:
     params["layers"] = jax.tree.map(
         lambda b, d: np.concatenate([b[:-k], b[-k:] + np.asarray(d, np.float32)]), params["layers"], deltas
     )
-    return jax.device_put(params)
+    return jax.device_put(encoder.half_matrices(params))
 
 
 def save(path, params: dict, cfg: HeadConfig, meta: dict, top_delta: dict | None = None) -> Path:
