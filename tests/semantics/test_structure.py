@@ -171,9 +171,14 @@ def test_tuned_layers_ship_as_float16_deltas_on_the_frozen_encoder():
     deltas = sh.top_deltas(top, cfg)
     assert all(d.dtype == np.float16 for d in jax.tree.leaves(deltas))
     merged = sh.with_top(deltas, cfg)
-    np.testing.assert_allclose(np.asarray(merged["layers"]["q"]["w"][-2:]), top["q"]["w"], atol=1e-5)
+    np.testing.assert_allclose(np.asarray(merged["layers"]["q"]["b"][-2:]), top["q"]["b"], atol=1e-5)
     np.testing.assert_array_equal(
-        np.asarray(merged["layers"]["q"]["w"][:-2]), np.asarray(base["layers"]["q"]["w"][:-2])
+        np.asarray(merged["layers"]["q"]["b"][:-2]), np.asarray(base["layers"]["q"]["b"][:-2])
     )
+    # The matrices as grounding reads them: the float32 merge stored in float16 (encoder.half_matrices).
+    w = np.asarray(merged["layers"]["q"]["w"])
+    assert w.dtype == np.float16
+    np.testing.assert_allclose(w[-2:].astype(np.float32), top["q"]["w"], rtol=1e-3, atol=1e-5)
+    np.testing.assert_array_equal(w[:-2], np.asarray(base["layers"]["q"]["w"][:-2]).astype(np.float16))
     flat = sh.flatten(deltas)
     assert "q/w" in flat and sh.unflatten(flat).keys() == deltas.keys()
