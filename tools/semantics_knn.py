@@ -12,7 +12,8 @@ same path once, and a dev text's intent distribution becomes
 (cosine similarity in one of the head's representations; the vote is over the 16 intents and "none"). The
 intensity stays the head's. For each variant (representation, which training rows form the table, when the vote
 applies, k, a) the confidence threshold is refitted on v2 dev as :mod:`tools.train_semantics` does (optionally a
-temperature on the blend first), and the variant is scored with its functions. The test splits are never read.
+temperature on the blend first), and the variant is scored with its functions, and on the situation hold-out
+(:data:`HOLDOUT`) at that threshold. The test splits are never read.
 Features are cached in ``.cache/semantics/`` keyed by the head's digest and the texts.
 """
 

@@ -222,15 +222,16 @@ KNN_GATE_FLAGS = ("has_rejected", "log_line", "system_prefix", "not_understood",
 def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
     """The nearest-neighbour vote over the training texts, blended into the head's intent probabilities.
 
-    ``p = (1 - a) p_head + a p_knn`` for texts that read as a situation (their chosen part names no action, and
-    they have no rejected part and no log, system, not-understood or background cue); other texts keep
-    ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest to the text's tuned sentence vector
-    (cosine), weighted by exp((sim - best sim) / tau).
+    ``p = (1 - a) p_head + a p_knn`` for the texts the table's gate lets through (a gate over the extras' columns:
+    those must be zero, e.g. "names no action and has no rejected part"; the shipped table's gate is empty, so
+    every text votes); other texts keep ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest
+    to the query (the text's tuned pooled vector the table was made of, :attr:`Head.knn_pool`), cosine, weighted by
+    exp((sim - best sim) / tau). With a ``temperature`` in the table, p^(1/T) renormalised, for every text.
 
     Args: knn (:func:`load_knn`: ``table`` ``(N, 384)`` unit vectors, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``
     0/1 over the extras' columns that must be zero (all zero: every text votes), ``tau``, ``a``, and optionally
-    ``temperature``, applied to the blended distribution of every text); p_intent ``(B, 17)``; sentence
-    ``(B, 384)`` unit vectors; extras ``(B, E)``. Returns ``(B, 17)``."""
+    ``temperature``); p_intent ``(B, 17)``; sentence: the query ``(B, 384)``, unit vectors; extras ``(B, E)``.
+    Returns ``(B, 17)``."""
     knn = jax.tree.map(jnp.asarray, knn)  # numpy tables too (tools.semantics_knn, tests): indexed by traced indices
     situation = jnp.sum(jnp.abs(extras) * knn["gate"], 1) == 0
 
@@ -244,7 +245,7 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
         vote = jnp.einsum("bk,bkc->bc", w, knn["onehot"][idx]) / jnp.sum(w, 1, keepdims=True)
         return jnp.where(situation[:, None], (1.0 - knn["a"]) * p + knn["a"] * vote, p)
 
-    # Most texts name an action: their program skips the table.
+    # With a gate, a batch none of whose texts passes it skips the table.
     p = jax.lax.cond(jnp.any(situation), blend, lambda p: p, p_intent)
     if "temperature" in knn:  # a temperature fitted on dev to the blended distribution (every text's)
         q = jnp.exp(jnp.log(jnp.clip(p, 1e-12, 1.0)) / knn["temperature"])
@@ -454,8 +455,8 @@ def save_knn(path, table, labels, gate, meta: dict) -> Path:
 def load_knn(head_digest: str, path=None) -> dict | None:
     """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
     missing or was made for another head): ``arrays``, the device arrays :func:`knn_blend` reads (``table``
-    ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``), and its
-    ``meta``. ``ValueError`` when its digest does not match."""
+    ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``, and
+    ``temperature`` when the meta's is not 1), and its ``meta`` (which pooled vector, k, the refitted threshold). ``ValueError`` when its digest does not match."""
     path = Path(path or KNN_ASSET)
     if not path.exists():
         return None
