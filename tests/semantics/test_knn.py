@@ -11,15 +11,14 @@ from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS
 from tools import semantics_knn
 
-# A situation from the hold-out (assets/semantics_dev_situations.jsonl) the head alone gets wrong (beckoning) and
-# the vote gets right: the nearest training texts are children shrinking from the robot.
-FAILED_TEST = "The toddler screams and ducks behind his dad every time the robot moves toward him."
-NAMES_AN_ACTION = {
-    "Nod.": "nodding",
-    "The user looks sad; comfort them gently.": "comforting",
-    "Rather than waving wildly, just give a small nod to show you heard them.": "nodding",
-    "Don't hug her; she wants space. Just back away slowly.": "withdrawal",
-}
+# A v2 dev situation the head alone gets wrong (celebrating: the corpora pass exams far more often than they fail
+# them) and the vote gets right.
+FAILED_TEST = "The student just found out she failed her driving test."
+NAMES_AN_ACTION = [
+    "Nod.",
+    "The user looks sad; comfort them gently.",
+    "Rather than waving wildly, just give a small nod to show you heard them.",
+]
 
 
 @pytest.fixture(scope="module")
@@ -58,22 +57,21 @@ def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_
         sh.load_knn("x", path)
 
 
-def test_the_vote_turns_a_hold_out_situation_the_right_way(head):
+def test_the_vote_turns_a_dev_situation_the_right_way(head):
     alone = dataclasses.replace(head, knn=None)
     p_alone = embedded.predict_tuned_many(alone, [FAILED_TEST])[0][0]
     p_vote = embedded.predict_tuned_many(head, [FAILED_TEST])[0][0]
-    assert INTENTS[int(np.argmax(p_alone[: len(INTENTS)]))] == "beckoning"
-    assert INTENTS[int(np.argmax(p_vote[: len(INTENTS)]))] == "withdrawal"
+    assert INTENTS[int(np.argmax(p_alone[: len(INTENTS)]))] == "celebrating"
+    assert INTENTS[int(np.argmax(p_vote[: len(INTENTS)]))] == "comforting"
     assert p_vote.sum() == pytest.approx(1.0, abs=1e-5)
 
 
-def test_texts_that_name_an_action_keep_their_intent_under_the_vote(head):
-    """The shipped vote reads every text (its gate is empty) through the chosen part's vector, so a rejected
-    reaction's words do not vote."""
-    assert head.knn["meta"]["gate"] == "always" and not np.any(np.asarray(head.knn["arrays"]["gate"]))
-    assert sh.KNN_POOLS[head.knn_pool] == "chosen"
-    p = embedded.predict_tuned_many(head, list(NAMES_AN_ACTION))[0]
-    assert [INTENTS[int(np.argmax(row[: len(INTENTS)]))] for row in p] == list(NAMES_AN_ACTION.values())
+def test_texts_that_name_an_action_keep_the_head_alone(head):
+    alone = dataclasses.replace(head, knn=None)
+    for a, b in zip(
+        embedded.predict_tuned_many(head, NAMES_AN_ACTION), embedded.predict_tuned_many(alone, NAMES_AN_ACTION)
+    ):
+        np.testing.assert_allclose(a, b, atol=1e-6)
 
 
 def test_shipped_blend_equals_the_dev_comparison():
