@@ -571,8 +571,6 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
     one compiled program per batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head
     together, with the head's nearest-neighbour vote when it has one (:attr:`head.Head.knn`), so one text costs one
     dispatch."""
-    import jax
-
     from jgrounding.semantics import head as semantic_head
     from jgrounding.semantics import structure
 
@@ -596,7 +594,7 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
             knn_k=head.knn_k,
             knn_pool=head.knn_pool,
         )
-        probs = [a[: len(idx)] for a in jax.device_get(probs)]  # one wait for the program, three copies
+        probs = [np.asarray(a)[: len(idx)] for a in probs]  # (3.8 us for three ready arrays; device_get: 28 us)
         if out is None:
             out = [np.zeros((len(texts), a.shape[1]), np.float32) for a in probs]
         for o, a in zip(out, probs):
