@@ -133,13 +133,12 @@ def risk_coverage(items: list[dict], preds: list) -> tuple[np.ndarray, np.ndarra
 def breakdown(texts: list[str]) -> dict:
     """Where a warm single-text ``jg.ground`` spends its time (the shipped tuned head): preparing the inputs in
     Python (structure rules, tokenizer, span pools, named actions and degree cues) and the one compiled program
-    (encoder and head), per token bucket. Milliseconds."""
+    (encoder, head and nearest-neighbour vote: :meth:`Head.run_tuned`), per token bucket. Milliseconds."""
     from jgrounding.semantics import structure
 
     head = semantic_head.load()
     if head.config.inputs != "tuned":
         return {}
-    enc_params = head.encoder_params()
     prep, program, buckets = [], [], []
     for text in texts:
         t0 = time.perf_counter()
@@ -147,7 +146,7 @@ def breakdown(texts: list[str]) -> dict:
         extras = embedded.tuned_extras(text, st)[None]
         (_, ids, mask, pools), *_ = list(embedded.encoder_batches([text], [st]))
         t1 = time.perf_counter()
-        out = semantic_head.predict_tuned(enc_params, head.params, ids, mask, pools, extras, head.temperature)
+        out = head.run_tuned(ids, mask, pools, extras)  # the program jg.ground runs, the vote included
         np.asarray(out[0])
         t2 = time.perf_counter()
         prep.append(t1 - t0)

@@ -571,29 +571,16 @@ def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, n
     one compiled program per batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head
     together, with the head's nearest-neighbour vote when it has one (:attr:`head.Head.knn`), so one text costs one
     dispatch."""
-    from jgrounding.semantics import head as semantic_head
     from jgrounding.semantics import structure
 
     texts = list(texts)
     structs = [structure.analyse(t) for t in texts]
     extras = np.stack([tuned_extras(t, st) for t, st in zip(texts, structs)])
-    enc_params = head.encoder_params()
     out = None
     for idx, ids, mask, pools in encoder_batches(texts, structs, batch_size):
         x = np.zeros((len(ids), extras.shape[1]), np.float32)
         x[: len(idx)] = extras[idx]
-        probs = semantic_head.predict_tuned(
-            enc_params,
-            head.params,
-            ids,
-            mask,
-            pools,
-            x,
-            head.temperature,
-            head.knn_arrays(),
-            knn_k=head.knn_k,
-            knn_pool=head.knn_pool,
-        )
+        probs = head.run_tuned(ids, mask, pools, x)
         probs = [np.asarray(a)[: len(idx)] for a in probs]  # (3.8 us for three ready arrays; device_get: 28 us)
         if out is None:
             out = [np.zeros((len(texts), a.shape[1]), np.float32) for a in probs]
@@ -606,27 +593,14 @@ def warmup_tuned(head, max_tokens: int = 128) -> None:
     """Compile (or load from the compilation cache) the tuned head's program for one text in every token bucket up
     to ``max_tokens``, so no later single-text ``ground`` waits for a compile."""
     from jgrounding.semantics import encoder
-    from jgrounding.semantics import head as semantic_head
 
-    enc_params = head.encoder_params()
     extras = np.zeros((1, head.config.num_features - NUM_POOLS * encoder.HIDDEN), np.float32)
     for length in encoder.BUCKETS:
         if length > max(max_tokens, encoder.BUCKETS[0]):
             break
         ids, mask = np.zeros((1, length), np.int32), np.ones((1, length), np.int32)
         pools = np.ones((1, NUM_POOLS, length), np.float32)
-        for a in semantic_head.predict_tuned(
-            enc_params,
-            head.params,
-            ids,
-            mask,
-            pools,
-            extras,
-            head.temperature,
-            head.knn_arrays(),
-            knn_k=head.knn_k,
-            knn_pool=head.knn_pool,
-        ):
+        for a in head.run_tuned(ids, mask, pools, extras):
             a.block_until_ready()
 
 

@@ -395,6 +395,22 @@ class Head:
         """The vote's device arrays as :func:`predict_tuned` takes them (None: no vote)."""
         return self.knn["arrays"] if self.knn else None
 
+    def run_tuned(self, ids, mask, pools, extras):
+        """:func:`predict_tuned` with this head's encoder, parameters, temperature and vote: the one program a
+        grounding runs (intent, intensity and reason probabilities of the batch)."""
+        return predict_tuned(
+            self.encoder_params(),
+            self.params,
+            ids,
+            mask,
+            pools,
+            extras,
+            self.temperature,
+            self.knn_arrays(),
+            knn_k=self.knn_k,
+            knn_pool=self.knn_pool,
+        )
+
     def encoder_params(self) -> dict:
         """The encoder weights this head reads (the frozen MiniLM, or with its tuned top layers)."""
         from jgrounding.semantics import encoder

@@ -74,15 +74,21 @@ def test_texts_that_name_an_action_keep_the_head_alone(head):
         np.testing.assert_allclose(a, b, atol=1e-6)
 
 
+def _random_vote(seed: int, rows: int, queries: int):
+    """A random unit table, its labels, unit queries and head distributions."""
+    rng = np.random.default_rng(seed)
+    table = rng.normal(size=(rows, 8)).astype(np.float32)
+    table /= np.linalg.norm(table, axis=1, keepdims=True)
+    labels = rng.integers(0, sh.NUM_CLASSES, rows)
+    q = rng.normal(size=(queries, 8)).astype(np.float32)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    p = rng.dirichlet(np.ones(sh.NUM_CLASSES), queries).astype(np.float32)
+    return table, labels, q, p
+
+
 def test_shipped_blend_equals_the_dev_comparison():
     """sh.knn_blend (in the compiled program) is the vote tools.semantics_knn compared on dev."""
-    rng = np.random.default_rng(1)
-    table = rng.normal(size=(50, 8)).astype(np.float32)
-    table /= np.linalg.norm(table, axis=1, keepdims=True)
-    labels = rng.integers(0, sh.NUM_CLASSES, 50)
-    q = rng.normal(size=(5, 8)).astype(np.float32)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    p = rng.dirichlet(np.ones(sh.NUM_CLASSES), 5).astype(np.float32)
+    table, labels, q, p = _random_vote(1, 50, 5)
     extras = np.zeros((5, 3), np.float32)
     extras[1, 0] = 1.0  # names an action: no vote
     knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 0, 0]))
@@ -96,13 +102,7 @@ def test_shipped_blend_equals_the_dev_comparison():
 def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
     """With a blend temperature in the table (fitted on dev by tools.semantics_knn), every text's blended
     distribution is sharpened as the dev comparison sharpened it, the texts that skip the vote included."""
-    rng = np.random.default_rng(2)
-    table = rng.normal(size=(40, 8)).astype(np.float32)
-    table /= np.linalg.norm(table, axis=1, keepdims=True)
-    labels = rng.integers(0, sh.NUM_CLASSES, 40)
-    q = rng.normal(size=(4, 8)).astype(np.float32)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    p = rng.dirichlet(np.ones(sh.NUM_CLASSES), 4).astype(np.float32)
+    table, labels, q, p = _random_vote(2, 40, 4)
     extras = np.zeros((4, 2), np.float32)
     extras[2, 1] = 1.0  # names an action: no vote, but the temperature still applies
     knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 1.0]))
@@ -111,7 +111,7 @@ def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
     blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
     blend[2] = p[2]
     np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
-    knn["gate"] = np.zeros(2, np.float32)  # the "always" gate: every text votes
+    knn["gate"] = np.zeros(2, np.float32)  # an empty gate: every text votes
     got = np.asarray(sh.knn_blend(knn, p, q, extras, 5))
     blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
     np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
