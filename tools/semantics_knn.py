@@ -142,11 +142,10 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
         hm, hz, hrows = held
         holdout = ts.selective(sharpen(hm, temperature) if refit_temperature else hm, hz, hrows, threshold)
     m, _, _ = sh.decide(pm, pz)
-    intent, _ = ts.labels(dev)
     sit = np.array([row.get("style") == "situation" for row in dev])
     return dict(
         score=ts.dev_score(r, rp),
-        situation=float(np.mean(m[sit] == intent[sit])),
+        situation=float(np.mean(m[sit] == dev_intent[sit])),
         threshold=threshold,
         blend_temperature=temperature,
         dev=r,
@@ -215,7 +214,7 @@ def main(argv=None) -> int:
         "situations+none": (style == "situation") | (train_intent == sh.NONE),
     }
     if args.write:
-        return write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, (x_hold, pz_h, hold))
+        return write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, (x_hold, hold))
     gates = {"always": (np.ones(len(dev), bool), np.ones(len(plain), bool), np.ones(len(hold), bool))}
     gates["no motion words"] = (no_motion_words(x_dev), no_motion_words(x_plain), no_motion_words(x_hold))
     print(
@@ -289,11 +288,11 @@ def _holdout_line(v: dict) -> str:
 def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, held) -> int:
     """Write :data:`CHOSEN` as ``assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
     blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule. Every other
-    table is scored the same way first, for the record."""
+    table is scored the same way first, for the record. ``held``: the hold-out's head inputs and rows."""
     if CHOSEN["representation"] not in sh.KNN_POOLS:
         raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
     pool = sh.KNN_POOLS.index(CHOSEN["representation"])
-    x_hold, pz_hold, hold = held
+    x_hold, hold = held
     gate = gate_vector(x_dev.shape[1] - 4 * POOL)
     if CHOSEN["gate"] == "always":
         gate = np.zeros_like(gate)
@@ -332,10 +331,14 @@ def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base,
     )
     if not ok:
         raise SystemExit("the chosen variant does not pass the ship rule on dev: nothing written")
-    meta = dict(k=CHOSEN["k"], tau=CHOSEN["tau"], a=CHOSEN["a"], head_digest=head.meta["params_digest"])
-    meta |= dict(representation=CHOSEN["representation"], gate=CHOSEN["gate"])
-    meta |= dict(temperature=float(r["blend_temperature"]))  # 1: none (sh.knn_blend applies any other)
-    meta |= dict(
+    meta = dict(
+        k=CHOSEN["k"],
+        tau=CHOSEN["tau"],
+        a=CHOSEN["a"],
+        head_digest=head.meta["params_digest"],
+        representation=CHOSEN["representation"],
+        gate=CHOSEN["gate"],
+        temperature=float(r["blend_temperature"]),  # 1: none (sh.knn_blend applies any other)
         threshold=r["threshold"],
         variant=CHOSEN,
         rows=int(len(labels)),

@@ -223,8 +223,8 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
     """The nearest-neighbour vote over the training texts, blended into the head's intent probabilities.
 
     ``p = (1 - a) p_head + a p_knn`` for the texts the table's gate lets through (a gate over the extras' columns:
-    those must be zero, e.g. "names no action and has no rejected part"; the shipped table's gate is empty, so
-    every text votes); other texts keep ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest
+    those must be zero; the shipped table's: the chosen part names no action, and no rejected part, log, system,
+    not-understood or background cue; an empty gate lets every text vote); other texts keep ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest
     to the query (the text's tuned pooled vector the table was made of, :attr:`Head.knn_pool`), cosine, weighted by
     exp((sim - best sim) / tau). With a ``temperature`` in the table, p^(1/T) renormalised, for every text.
 
@@ -472,7 +472,8 @@ def load_knn(head_digest: str, path=None) -> dict | None:
     """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
     missing or was made for another head): ``arrays``, the device arrays :func:`knn_blend` reads (``table``
     ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``, and
-    ``temperature`` when the meta's is not 1), and its ``meta`` (which pooled vector, k, the refitted threshold). ``ValueError`` when its digest does not match."""
+    ``temperature`` when the meta's is not 1), and its ``meta`` (which pooled vector, k, the refitted threshold).
+    ``ValueError`` when its digest does not match."""
     path = Path(path or KNN_ASSET)
     if not path.exists():
         return None
