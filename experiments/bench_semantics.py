@@ -33,6 +33,7 @@ import jax
 import numpy as np
 
 import jgrounding as jg
+from experiments.bench_sample import peak_gflops
 from jgrounding import semantics
 from jgrounding.io import write_atomic
 from jgrounding.semantics import embedded, encoder
@@ -159,7 +160,12 @@ def breakdown(texts: list[str]) -> dict:
         "program_ms_median": float(np.median(program)),
         "program_ms_p99": float(np.percentile(program, 99)),
         "by_bucket": {
-            int(b): {"n": int((buckets == b).sum()), "program_ms_median": float(np.median(program[buckets == b]))}
+            int(b): {
+                "n": int((buckets == b).sum()),
+                "program_ms_median": float(np.median(program[buckets == b])),
+                "gflop": encoder.matmul_flops(int(b)) / 1e9,
+                "gflops": encoder.matmul_flops(int(b)) / 1e6 / float(np.median(program[buckets == b])),
+            }
             for b in np.unique(buckets)
         },
     }
@@ -352,6 +358,7 @@ def main(argv=None) -> int:
         }
     parts = breakdown([it["text"] for split in splits.values() for it in split])
     precision = matrix_precision([it["text"] for it in splits["v2 test"]])
+    peak, peak_text = peak_gflops()
     load_pinned = os.getloadavg()[0]
     pinned = one_core_latency([it["text"] for split in splits.values() for it in split])
     t0 = time.perf_counter()
@@ -425,9 +432,17 @@ def main(argv=None) -> int:
             "compiled program (the six encoder layers at the text's token bucket, then the head); the rest of the "
             "warm median is Python around them (checks, caveats, the Grounding). The program by bucket:",
             "",
-            "| token bucket | texts | program, median ms |",
-            "|---|---|---|",
-            *[f"| {b} | {v['n']} | {v['program_ms_median']:.2f} |" for b, v in parts["by_bucket"].items()],
+            "| token bucket | texts | program, median ms | encoder products, GFLOP | GFLOP/s | share of peak |",
+            "|---|---|---|---|---|---|",
+            *[
+                f"| {b} | {v['n']} | {v['program_ms_median']:.2f} | {v['gflop']:.3f} | {v['gflops']:.0f} "
+                f"| {100 * v['gflops'] / peak:.0f} % |"
+                for b, v in parts["by_bucket"].items()
+            ],
+            "",
+            f"GFLOP/s: the encoder's matrix products (`encoder.matmul_flops`: the six dense products and attention's "
+            f"two per layer; norms, GELU, softmax, the head and the vote left out) over the whole program's median "
+            f"time, a lower bound on the rate; peak: {peak_text}.",
             "",
             f"The encoder alone on the v2 test texts, one at a time, with its dense matrices stored in float16 as "
             f"grounding keeps them (widened to float32 in the program): {precision['float16_ms']:.2f} ms median, "

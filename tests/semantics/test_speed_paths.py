@@ -81,3 +81,16 @@ def test_grounding_reads_half_stored_matrices_with_the_float32_result(head):
         a = np.asarray(encoder.pool_ids(full, ids, mask, pools))
         b = np.asarray(encoder.pool_ids(half, ids, mask, pools))
         assert 0 < np.abs(a - b).max() < 1e-3  # rounded, and only by rounding
+
+
+@pytest.mark.parametrize("length", [8, 40])
+def test_matmul_flops_counts_what_xla_counts_in_a_layer(head, length):
+    # bench semantics divides by encoder.matmul_flops to print the program's arithmetic rate; XLA's own count of
+    # one layer (elementwise work included, so a little above ours) must agree with a sixth of it.
+    layer = jax.tree.map(lambda a: np.asarray(a[0], np.float32), head.encoder_params()["layers"])
+    x = np.zeros((1, length, encoder.HIDDEN), np.float32)
+    bias = np.zeros((1, 1, 1, length), np.float32)
+    cost = jax.jit(encoder.block).lower(x, bias, layer).compile().cost_analysis()
+    cost = cost[0] if isinstance(cost, list) else cost
+    ours = encoder.matmul_flops(length) / encoder.NUM_LAYERS
+    assert ours <= cost["flops"] <= 1.1 * ours
