@@ -64,6 +64,16 @@ GOALS = {
     "ms_p99": 15.0,
     "first_call_s": 1.5,
 }
+# Where what was tried is written up, for the goals (keys of GOALS) that fell short in some run.
+TRIED = {
+    "intent": "more training situations (640 shipped; 256 and 1,024 more, not shipped), label smoothing, four tuned "
+    "layers, a lighter generated corpus, model soups, 1,920 nearest-neighbour vote variants (one shipped), a stronger "
+    "encoder (none in the registry that ships its weights fits the budget): docs/how_it_works.md, section 1",
+    "ms_median": "bucketed padding, one compiled program per call, float16-stored matrices, less Python per text, "
+    "XNNPACK and oneDNN, bfloat16, a fused QKV product, the classic runtime; the products' rate is in the bucket "
+    "table above: docs/how_it_works.md, section 1, 'Speed'",
+    "ms_p99": "pinning the process to one core under load: docs/how_it_works.md, section 1, 'Speed'",
+}
 FIRST_CALL = (
     "import time; t = time.perf_counter(); import jgrounding as jg; "
     "jg.ground('The user looks sad; comfort them gently.', escalate=False); print(time.perf_counter() - t)"
@@ -130,6 +140,63 @@ def risk_coverage(items: list[dict], preds: list) -> tuple[np.ndarray, np.ndarra
     order = np.argsort(-conf, kind="stable")
     k = np.arange(1, len(items) + 1)
     return k / len(items), np.cumsum(ok[order]) / k
+
+
+def goal_rows(res: dict, latency: dict, first_warm: list[float]) -> list[tuple[str, str, bool, str]]:
+    """#24's goals on the v2 test split for the shipped reducer: ``(key, goal, met, measured)`` per row, ``key``
+    one of :data:`GOALS` (or ``plain`` for the plain test split's intent against the first head)."""
+    t = res[("new", "v2 test", "all")]
+    styles = [k[2] for k in res if k[:2] == ("new", "v2 test") and k[2] != "all"]
+    worst = min(
+        res[("new", "v2 test", s)]["intent"]
+        for s in styles
+        if res[("new", "v2 test", s)]["n_motion"] and res[("new", "v2 test", s)]["intent"] is not None
+    )
+    new_plain, old_plain = res[("new", "plain test", "all")]["intent"], res[("old", "plain test", "all")]["intent"]
+    first = float(np.median(first_warm))
+    return [
+        (
+            "intent",
+            "intent >= 0.95 on motion texts in every style",
+            worst >= GOALS["intent"],
+            f"lowest style {worst:.3f}",
+        ),
+        (
+            "confident_wrong",
+            "confident wrong motion <= 3%",
+            t["confident_wrong"] <= GOALS["confident_wrong"],
+            f"{t['confident_wrong']:.3f}",
+        ),
+        ("none_held", "no-behaviour texts held >= 90%", t["none_held"] >= GOALS["none_held"], f"{t['none_held']:.3f}"),
+        ("exact", "intensity exact >= 0.75", t["exact"] >= GOALS["exact"], f"{t['exact']:.3f}"),
+        (
+            "within_one",
+            "intensity within one >= 0.97",
+            t["within_one"] >= GOALS["within_one"],
+            f"{t['within_one']:.3f}",
+        ),
+        ("ece", "ECE <= 0.05", t["ece"] <= GOALS["ece"], f"{t['ece']:.3f}"),
+        (
+            "ms_median",
+            "warm median <= 5 ms",
+            latency["new"]["ms_median"] <= GOALS["ms_median"],
+            f"{latency['new']['ms_median']:.2f} ms",
+        ),
+        ("ms_p99", "p99 <= 15 ms", latency["new"]["ms_p99"] <= GOALS["ms_p99"], f"{latency['new']['ms_p99']:.2f} ms"),
+        ("first_call_s", "first call <= 1.5 s (cache warm)", first <= GOALS["first_call_s"], f"{first:.2f} s"),
+        (
+            "plain",
+            "plain test intent does not fall (new >= old)",
+            new_plain >= old_plain,
+            f"{new_plain:.3f} vs {old_plain:.3f}",
+        ),
+    ]
+
+
+def shortfalls(rows) -> list[str]:
+    """For each goal of :func:`goal_rows` not met, what was tried (:data:`TRIED`); a goal missed for the first
+    time, with nothing tried yet, says so."""
+    return [f"{g}: {TRIED.get(key, 'nothing tried yet (a new shortfall)')}" for key, g, ok, _ in rows if not ok]
 
 
 def breakdown(texts: list[str]) -> dict:
@@ -450,42 +517,11 @@ def main(argv=None) -> int:
             f"text ({precision['ratio']:.2f}x).",
             "",
         ]
-    t = res[("new", "v2 test", "all")]
-    v2_styles = [k[2] for k in res if k[:2] == ("new", "v2 test") and k[2] != "all"]
-    style_intents = {
-        s: res[("new", "v2 test", s)]["intent"] for s in v2_styles if res[("new", "v2 test", s)]["n_motion"]
-    }
-    worst = min(v for v in style_intents.values() if v is not None)
-    checks = [
-        ("intent >= 0.95 on motion texts in every style", worst >= GOALS["intent"], f"lowest style {worst:.3f}"),
-        (
-            "confident wrong motion <= 3%",
-            t["confident_wrong"] <= GOALS["confident_wrong"],
-            f"{t['confident_wrong']:.3f}",
-        ),
-        ("no-behaviour texts held >= 90%", t["none_held"] >= GOALS["none_held"], f"{t['none_held']:.3f}"),
-        ("intensity exact >= 0.75", t["exact"] >= GOALS["exact"], f"{t['exact']:.3f}"),
-        ("intensity within one >= 0.97", t["within_one"] >= GOALS["within_one"], f"{t['within_one']:.3f}"),
-        ("ECE <= 0.05", t["ece"] <= GOALS["ece"], f"{t['ece']:.3f}"),
-        (
-            "warm median <= 5 ms",
-            latency["new"]["ms_median"] <= GOALS["ms_median"],
-            f"{latency['new']['ms_median']:.2f} ms",
-        ),
-        ("p99 <= 15 ms", latency["new"]["ms_p99"] <= GOALS["ms_p99"], f"{latency['new']['ms_p99']:.2f} ms"),
-        (
-            "first call <= 1.5 s (cache warm)",
-            np.median(first_warm) <= GOALS["first_call_s"],
-            f"{np.median(first_warm):.2f} s",
-        ),
-        (
-            "plain test intent does not fall (new >= old)",
-            res[("new", "plain test", "all")]["intent"] >= res[("old", "plain test", "all")]["intent"],
-            f"{res[('new', 'plain test', 'all')]['intent']:.3f} vs {res[('old', 'plain test', 'all')]['intent']:.3f}",
-        ),
-    ]
+    checks = goal_rows(res, latency, first_warm)
     lines += ["#### Goals (v2 test, the shipped head)", "", "| goal | met | measured |", "|---|---|---|"]
-    lines += [f"| {g} | {'yes' if ok else '**no**'} | {v} |" for g, ok, v in checks]
+    lines += [f"| {g} | {'yes' if ok else '**no**'} | {v} |" for _, g, ok, v in checks]
+    if tried := shortfalls(checks):
+        lines += ["", "What was tried for each goal not met:", "", *[f"- {m}" for m in tried]]
     lines += [
         "",
         f"Shipped head: option `{head.meta.get('selected')}`, temperature {head.temperature:.2f} and confidence "
@@ -497,7 +533,10 @@ def main(argv=None) -> int:
         INTENTS.index(g.intent) if g.confident or "no behaviour" not in g.reason else len(INTENTS) for g in new_preds
     ]
     conf_fig = confusion_figure(
-        true, pred, RESULTS / "semantics_confusion.png", f"jg.ground on the v2 test split (intent {t['intent']:.3f})"
+        true,
+        pred,
+        RESULTS / "semantics_confusion.png",
+        f"jg.ground on the v2 test split (intent {res[('new', 'v2 test', 'all')]['intent']:.3f})",
     )
     lines += ["", f"Risk-coverage curves: {fig.relative_to(ROOT)}; confusion matrix: {conf_fig.relative_to(ROOT)}"]
     print("\n".join(lines))
@@ -511,7 +550,7 @@ def main(argv=None) -> int:
         "breakdown": parts,
         "matrix_precision": precision,
         "one_core": pinned,
-        "goals": {g: {"met": bool(ok), "measured": v} for g, ok, v in checks},
+        "goals": {g: {"met": bool(ok), "measured": v} for _, g, ok, v in checks},
         "head": {k: head.meta.get(k) for k in ("selected", "temperature", "threshold", "params_digest")},
         "risk_coverage": {
             f"{n}|{sp}": {"coverage": c[::4].round(4).tolist(), "accuracy": a[::4].round(4).tolist()}
