@@ -12,8 +12,9 @@ same path once, and a dev text's intent distribution becomes
 (cosine similarity in one of the head's representations; the vote is over the 16 intents and "none"). The
 intensity stays the head's. For each variant (representation, which training rows form the table, when the vote
 applies, k, a) the confidence threshold is refitted on v2 dev as :mod:`tools.train_semantics` does (optionally a
-temperature on the blend first), and the variant is scored with its functions, and on the situation hold-out
-(:data:`HOLDOUT`) at that threshold. The test splits are never read.
+temperature on the blend first), and the variant is scored with its functions, and on the two situation hold-outs
+(:data:`HOLDOUTS`) at that threshold. The table may hold, beyond the training texts, rows the head was never trained
+on (:data:`VOTE_ROWS`). The test splits are never read.
 Features are cached in ``.cache/semantics/`` keyed by the head's digest and the texts.
 """
 
@@ -34,9 +35,18 @@ from tools import train_semantics as ts
 
 ROOT = ts.ROOT
 REPORT = ROOT / "results" / "semantics_dev_knn.json"
-# Situation-only texts written for selection by a writer who saw neither the code, the training corpora nor the
+# Situation-only texts written for selection by writers who saw neither the code, the training corpora nor the
 # evaluation sets (v2 dev holds 29 situations): scored beside v2 dev, never trained on, not part of the ship rule.
-HOLDOUT = ROOT / "assets" / "semantics_dev_situations.jsonl"
+# "hold-out": 320 texts from docs/semantics_writing_brief.md (a brief that says which situations call for which
+# behaviour); "blind": 256 texts from docs/semantics_blind_brief.md (the intents' descriptions and the style, as the
+# v2 evaluation set's writer had them).
+HOLDOUTS = {
+    "hold-out": ROOT / "assets" / "semantics_dev_situations.jsonl",
+    "blind": ROOT / "assets" / "semantics_dev_situations_blind.jsonl",
+}
+# Rows the vote's table holds beyond the training corpora (the head is not trained on them, so
+# tools.train_semantics still rebuilds the shipped head): 1,024 situations written from the blind brief.
+VOTE_ROWS = ROOT / "assets" / "semantics_vote"
 POOL = sh.EMBED_DIM
 # The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
 # corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
@@ -128,7 +138,7 @@ def sharpen(p: np.ndarray, t: float) -> np.ndarray:
 
 def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, held=None) -> dict:
     """Threshold (and optionally a temperature on the blend) fitted on v2 dev; the dev metrics and score.
-    ``held``: ``(p_intent, p_intensity, rows)`` of the situation hold-out, scored at the same threshold."""
+    ``held``: hold-out name -> ``(p_intent, p_intensity, rows)``, each scored at the same threshold."""
     dev_intent, _ = ts.labels(dev)
     temperature = 1.0
     if refit_temperature:
@@ -137,10 +147,10 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
     threshold = ts.calibrate_threshold(pm, pz, dev)
     r = ts.selective(pm, pz, dev, threshold)
     rp = ts.selective(pm_plain, pz_plain, plain, threshold)
-    holdout = None
-    if held is not None:
-        hm, hz, hrows = held
-        holdout = ts.selective(sharpen(hm, temperature) if refit_temperature else hm, hz, hrows, threshold)
+    holdout = {
+        name: ts.selective(sharpen(hm, temperature) if refit_temperature else hm, hz, hrows, threshold)
+        for name, (hm, hz, hrows) in (held or {}).items()
+    }
     m, _, _ = sh.decide(pm, pz)
     sit = np.array([row.get("style") == "situation" for row in dev])
     return dict(
@@ -176,30 +186,38 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--report", default=str(REPORT))
     p.add_argument("--write", action="store_true", help=f"write the chosen variant {CHOSEN} to {sh.KNN_ASSET.name}")
+    p.add_argument(
+        "--head",
+        default=None,
+        help="compare the variants for another head file (e.g. one retrained by tools.train_semantics --out); "
+        "the shipped table is written only for the shipped head",
+    )
+    p.add_argument("--chosen-only", action="store_true", help=f"score only the chosen variant {CHOSEN}, write nothing")
     args = p.parse_args(argv)
-    head = sh.load()
+    if args.head and args.write:
+        raise SystemExit("--write builds the shipped head's table; drop --head (or use --chosen-only)")
+    head = sh.load(args.head)
     if head.knn is not None:  # compare against the head alone
         head = sh.Head(
             head.params, head.config, head.temperature, float(head.meta["threshold"]), head.meta, head.encoder
         )
-    rows, _ = ts.load_train()
-    files = []
-    for path in sorted(ts.TRAIN_DIR.glob("*.jsonl")):
-        files += [path.name] * len(ts.read_jsonl(path))
-    files = np.array(files)
+    rows, files = table_rows()
     dev, plain = ts.read_jsonl(ts.DEV), ts.read_jsonl(ts.DEV_PLAIN)
     x_train = head_features(head, [r["text"] for r in rows])
     x_dev = head_features(head, [r["text"] for r in dev])
     x_plain = head_features(head, [r["text"] for r in plain])
     pm_d, pz_d = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_dev, head.temperature))
     pm_p, pz_p = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_plain, head.temperature))
-    hold = ts.read_jsonl(HOLDOUT) if HOLDOUT.exists() else []
-    x_hold = head_features(head, [r["text"] for r in hold]) if hold else x_dev[:0]
-    pm_h, pz_h = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_hold, head.temperature))
+    holds = {name: ts.read_jsonl(path) for name, path in HOLDOUTS.items() if path.exists()}
+    x_hold = {name: head_features(head, [r["text"] for r in hr]) for name, hr in holds.items()}
+    p_hold = {
+        name: tuple(np.asarray(a, np.float64) for a in sh.predict(head.params, x_hold[name], head.temperature))
+        for name in holds
+    }
     train_intent, _ = ts.labels(rows)
     style = np.array([r.get("style") or "" for r in rows])
 
-    base = evaluate(pm_d, pz_d, dev, pm_p, pz_p, plain, False, held=(pm_h, pz_h, hold) if hold else None)
+    base = evaluate(pm_d, pz_d, dev, pm_p, pz_p, plain, False, held={n: (*p_hold[n], holds[n]) for n in holds})
     assert base["threshold"] == head.threshold, "the refit must give the shipped head's threshold"
     print(
         f"shipped head: score {base['score']:.3f} situation {base['situation']:.3f} "
@@ -213,29 +231,49 @@ def main(argv=None) -> int:
         "situations": style == "situation",
         "situations+none": (style == "situation") | (train_intent == sh.NONE),
     }
-    if args.write:
-        return write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, (x_hold, hold))
-    gates = {"always": (np.ones(len(dev), bool), np.ones(len(plain), bool), np.ones(len(hold), bool))}
-    gates["no motion words"] = (no_motion_words(x_dev), no_motion_words(x_plain), no_motion_words(x_hold))
+    if args.write or args.chosen_only:
+        return write(
+            head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, (x_hold, holds), dry=not args.write
+        )
+    gates = {
+        "always": (
+            np.ones(len(dev), bool),
+            np.ones(len(plain), bool),
+            {n: np.ones(len(holds[n]), bool) for n in holds},
+        ),
+        "no motion words": (
+            no_motion_words(x_dev),
+            no_motion_words(x_plain),
+            {n: no_motion_words(x_hold[n]) for n in holds},
+        ),
+    }
     print(
         f"no motion words: {gates['no motion words'][0].sum()} of {len(dev)} v2 dev texts, "
         f"{gates['no motion words'][1].sum()} of {len(plain)} plain dev texts"
     )
     variants = []
     for rep in ("sentence", "chosen", "pools", "hidden"):
-        q_d, q_p, q_h, t_all = (representation(rep, head.params, x) for x in (x_dev, x_plain, x_hold, x_train))
+        q_d, q_p, t_all = (representation(rep, head.params, x) for x in (x_dev, x_plain, x_train))
+        q_h = {n: representation(rep, head.params, x_hold[n]) for n in holds}
         for (tname, tmask), (gname, (g_d, g_p, g_h)) in itertools.product(tables.items(), gates.items()):
             if tname.startswith("situations") and gname == "always":
                 continue  # a situation-only table votes for every text only behind the gate
             for k, tau in itertools.product((5, 10, 20, 40), (0.0, 0.05)):
                 v_d = knn_vote(q_d, t_all[tmask], train_intent[tmask], k, tau)
                 v_p = knn_vote(q_p, t_all[tmask], train_intent[tmask], k, tau)
-                v_h = knn_vote(q_h, t_all[tmask], train_intent[tmask], k, tau)
+                v_h = {n: knn_vote(q_h[n], t_all[tmask], train_intent[tmask], k, tau) for n in holds}
                 for a, refit in itertools.product((0.1, 0.2, 0.3, 0.5, 0.7), (False, True)):
                     bd = np.where(g_d[:, None], (1 - a) * pm_d + a * v_d, pm_d)
                     bp = np.where(g_p[:, None], (1 - a) * pm_p + a * v_p, pm_p)
-                    bh = np.where(g_h[:, None], (1 - a) * pm_h + a * v_h, pm_h)
-                    r = evaluate(bd, pz_d, dev, bp, pz_p, plain, refit, held=(bh, pz_h, hold) if hold else None)
+                    bh = {
+                        n: (
+                            np.where(g_h[n][:, None], (1 - a) * p_hold[n][0] + a * v_h[n], p_hold[n][0]),
+                            p_hold[n][1],
+                            holds[n],
+                        )
+                        for n in holds
+                    }
+                    r = evaluate(bd, pz_d, dev, bp, pz_p, plain, refit, held=bh)
                     r |= dict(representation=rep, table=tname, gate=gname, k=k, tau=tau, a=a, refit_temperature=refit)
                     r["qualifies"] = qualifies(r, base)
                     variants.append(r)
@@ -276,23 +314,35 @@ def main(argv=None) -> int:
 
 
 def _holdout_line(v: dict) -> str:
-    h = v.get("holdout")
-    if h is None:
-        return "hold-out: none"
-    return (
-        f"hold-out intent {h['intent_motion']:.3f} acted {h['coverage_motion']:.3f}"
+    if not v.get("holdout"):
+        return "hold-outs: none"
+    return " ".join(
+        f"{name}: intent {h['intent_motion']:.3f} acted {h['coverage_motion']:.3f}"
         f" wrong {h['confident_wrong']:.3f} exact {h['intensity_exact']:.3f}"
+        for name, h in v["holdout"].items()
     )
 
 
-def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, held) -> int:
+def table_rows() -> tuple[list[dict], np.ndarray]:
+    """The rows the vote's table may hold: the training corpora (:func:`tools.train_semantics.load_train`) and then
+    the vote-only rows (:data:`VOTE_ROWS`), with each row's file name ``(N,)``."""
+    rows, files = [], []
+    for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *sorted(VOTE_ROWS.glob("*.jsonl"))]:
+        part = ts.read_jsonl(path)
+        rows += part
+        files += [path.name] * len(part)
+    return rows, np.array(files)
+
+
+def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, held, dry: bool = False) -> int:
     """Write :data:`CHOSEN` as ``assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
     blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule. Every other
-    table is scored the same way first, for the record. ``held``: the hold-out's head inputs and rows."""
+    table is scored the same way first, for the record. ``held``: the hold-outs' head inputs and rows (two dicts by
+    name). ``dry``: print the scores, write nothing."""
     if CHOSEN["representation"] not in sh.KNN_POOLS:
         raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
     pool = sh.KNN_POOLS.index(CHOSEN["representation"])
-    x_hold, hold = held
+    x_hold, holds = held
     gate = gate_vector(x_dev.shape[1] - 4 * POOL)
     if CHOSEN["gate"] == "always":
         gate = np.zeros_like(gate)
@@ -311,7 +361,7 @@ def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base,
                 pm = np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, x[:, 4 * POOL :], CHOSEN["k"]))
             return pm.astype(np.float64), pz
 
-        h = (*probs(x_hold), hold) if hold else None
+        h = {n: (*probs(x_hold[n]), holds[n]) for n in holds}
         return table, labels, evaluate(*probs(x_dev), dev, *probs(x_plain), plain, refit, held=h)
 
     for name, mask in tables.items():
@@ -329,6 +379,8 @@ def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base,
         f" thr {r['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in d.items()})}"
         f" plain {r['plain_intent']:.3f} {_holdout_line(r)}; ship rule: {ok}"
     )
+    if dry:
+        return 0
     if not ok:
         raise SystemExit("the chosen variant does not pass the ship rule on dev: nothing written")
     meta = dict(

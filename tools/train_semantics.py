@@ -47,7 +47,9 @@ TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test 
 # rejected and quoted parts pooled apart from one encoder pass, Eq. (3) cues of the chosen part, structure flags).
 # Rows weigh by their file: the generated corpus less (templated), the structure corpus (the styles real
 # reasoners write, and the no-behaviour kinds) more; each intent and "none" then weighs the same in total.
-FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0}
+# (situations_blind.jsonl: the vote-only rows of assets/semantics_vote/, for a head retrained with them through
+# --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
+FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),
     "structure": dict(inputs="structure", hidden=128, steps=400),

@@ -9,7 +9,7 @@ import pytest
 from jgrounding.semantics import embedded
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS
-from tools import semantics_knn
+from tools import semantics_knn, train_semantics
 
 # A v2 dev situation the head alone gets wrong (celebrating: the corpora pass exams far more often than they fail
 # them) and the vote gets right.
@@ -38,6 +38,22 @@ def test_table_matches_its_digest_and_the_shipped_head(head):
     np.testing.assert_allclose(np.linalg.norm(table.astype(np.float32), axis=1), 1.0, atol=2e-3)
     assert head.threshold == meta["threshold"] and head.knn_k == meta["k"]
     assert meta["dev_score"] > meta["head_alone"]["score"]  # it shipped under the ship rule
+
+
+def test_table_holds_the_vote_only_rows_that_the_head_never_trained_on(head):
+    # The shipped table: every training row but the generated corpus, then the vote-only situations
+    # (assets/semantics_vote/), in tools.semantics_knn.table_rows' order. The head's trainer must not read them.
+    rows, files = semantics_knn.table_rows()
+    intent, _ = train_semantics.labels(rows)
+    keep = files != "generated.jsonl"
+    with np.load(sh.KNN_ASSET) as f:
+        labels = f["labels"]
+    np.testing.assert_array_equal(labels, intent[keep])
+    vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS.glob("*.jsonl")])
+    assert vote_only.sum() == 1024 and vote_only[keep].sum() == 1024
+    trained, _ = train_semantics.load_train()
+    assert len(trained) == len(rows) - vote_only.sum()
+    assert not {r["text"] for r in trained} & {r["text"] for r, v in zip(rows, vote_only) if v}
 
 
 def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_path):
