@@ -5,7 +5,7 @@ texts and eight kinds of texts that call for no motion) and the plainly worded `
 Three reducers run in the same process, each text grounded alone, warm (``semantics.warmup``: every token
 bucket compiled before timing):
 
-- ``new``: the shipped trained head (``jg.ground``, ``escalate=False``);
+- ``new``: the shipped trained head (``jg.ground(text)``, its defaults; no MLLM endpoint may be configured);
 - ``old``: the first trained head (``assets/semantic_head_v1.npz``, the embedding + Eq. (3) head of #15);
 - ``cues``: the cue-list reducer (``backend="cues"``), the baseline.
 
@@ -77,7 +77,7 @@ TRIED = {
 }
 FIRST_CALL = (
     "import time; t = time.perf_counter(); import jgrounding as jg; "
-    "jg.ground('The user looks sad; comfort them gently.', escalate=False); print(time.perf_counter() - t)"
+    "jg.ground('The user looks sad; comfort them gently.'); print(time.perf_counter() - t)"
 )
 
 
@@ -87,7 +87,7 @@ def read_jsonl(path) -> list[dict]:
 
 def grounder(name: str):
     if name == "new":
-        return lambda t: jg.ground(t, escalate=False)
+        return jg.ground  # what users call, with its defaults
     if name == "cues":
         return lambda t: jg.ground(t, backend="cues")
     old = semantic_head.load(str(OLD_HEAD))
@@ -270,11 +270,11 @@ import jgrounding as jg
 from jgrounding import semantics
 semantics.warmup(256)
 texts = json.loads(sys.stdin.read())
-jg.ground(texts[0], escalate=False)
+jg.ground(texts[0])
 t = []
 for text in texts:
     t0 = time.perf_counter()
-    jg.ground(text, escalate=False)
+    jg.ground(text)
     t.append(time.perf_counter() - t0)
 t = np.array(t) * 1e3
 print(json.dumps({"ms_median": float(np.median(t)), "ms_p99": float(np.percentile(t, 99)), "n": len(t)}))
@@ -372,6 +372,12 @@ def main(argv=None) -> int:
     missing = [str(p) for p in [*SPLITS.values(), OLD_HEAD] if not p.exists()]
     if missing:
         print(f"missing: {', '.join(missing)}")
+        return 1
+    if semantics.mllm_configured():
+        print(
+            "an MLLM endpoint is configured (JGROUNDING_MLLM_URL): jg.ground would escalate unsure texts to it; "
+            "unset it, bench semantics measures the offline reducer with jg.ground's defaults"
+        )
         return 1
     splits = {name: read_jsonl(path) for name, path in SPLITS.items()}
     with tempfile.TemporaryDirectory() as cold:

@@ -46,3 +46,10 @@ def test_a_shortfall_names_its_measure_and_what_was_tried():
 def test_a_new_shortfall_says_nothing_was_tried_yet():
     rows = bench.goal_rows(*_results(ece=0.2))
     assert bench.shortfalls(rows) == ["ECE <= 0.05: nothing tried yet (a new shortfall)"]
+
+
+def test_it_refuses_to_time_jg_ground_when_it_would_escalate_to_an_mllm(monkeypatch, capsys):
+    # The benchmark times jg.ground with its defaults; with an endpoint set, unsure texts would go to the network.
+    monkeypatch.setenv("JGROUNDING_MLLM_URL", "http://127.0.0.1:9/v1")
+    assert bench.main([]) == 1
+    assert "JGROUNDING_MLLM_URL" in capsys.readouterr().out
