@@ -223,19 +223,16 @@ def breakdown(texts: list[str]) -> dict:
         program.append(t2 - t1)
         buckets.append(ids.shape[1])
     prep, program, buckets = np.array(prep) * 1e3, np.array(program) * 1e3, np.array(buckets)
+    by_bucket = {}
+    for b in map(int, np.unique(buckets)):
+        ms, flops = float(np.median(program[buckets == b])), encoder.matmul_flops(b)
+        by_bucket[b] = {"n": int((buckets == b).sum()), "program_ms_median": ms, "gflop": flops / 1e9}
+        by_bucket[b]["gflops"] = flops / 1e6 / ms
     return {
         "prep_ms_median": float(np.median(prep)),
         "program_ms_median": float(np.median(program)),
         "program_ms_p99": float(np.percentile(program, 99)),
-        "by_bucket": {
-            int(b): {
-                "n": int((buckets == b).sum()),
-                "program_ms_median": float(np.median(program[buckets == b])),
-                "gflop": encoder.matmul_flops(int(b)) / 1e9,
-                "gflops": encoder.matmul_flops(int(b)) / 1e6 / float(np.median(program[buckets == b])),
-            }
-            for b in np.unique(buckets)
-        },
+        "by_bucket": by_bucket,
     }
 
 

@@ -72,3 +72,31 @@ def cache_dir() -> Path | None:
         return None
     base = Path(root) if root else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jgrounding"
     return base / "jax"
+
+
+def enable_compilation_cache(path: str | Path | None = None, *, min_compile_secs: float = 0.0) -> str | None:
+    """Turn on JAX's persistent compilation cache, so compiled programs survive the process: in ``path`` when given
+    (it replaces any folder set before), else in :func:`cache_dir` unless a folder is already set (the user's own
+    wins) or ``JGROUNDING_CACHE=off``. Programs that compiled in under ``min_compile_secs`` are not stored.
+    Returns the folder in use, or None (off, or a folder that cannot be created: compile every time, as before)."""
+    import jax
+
+    if path is None:
+        if jax.config.jax_compilation_cache_dir:
+            return jax.config.jax_compilation_cache_dir
+        path = cache_dir()
+        if path is None:
+            return None
+    try:
+        Path(path).mkdir(parents=True, exist_ok=True)
+    except OSError:  # a read-only home
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", min_compile_secs)
+    try:  # a cache already initialised (disabled) by an earlier compile in this process is re-read
+        from jax._src import compilation_cache
+
+        compilation_cache.reset_cache()
+    except Exception:  # pragma: no cover - private API; without it the cache starts with the next process
+        pass
+    return str(path)

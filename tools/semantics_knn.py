@@ -202,22 +202,24 @@ def main(argv=None) -> int:
             head.params, head.config, head.temperature, float(head.meta["threshold"]), head.meta, head.encoder
         )
     rows, files = table_rows()
-    dev, plain = ts.read_jsonl(ts.DEV), ts.read_jsonl(ts.DEV_PLAIN)
+    # Every set a variant is scored on: v2 dev (threshold and ship rule), plain dev and the hold-outs.
+    sets = {"dev": ts.read_jsonl(ts.DEV), "plain": ts.read_jsonl(ts.DEV_PLAIN)}
+    holds = [name for name, path in HOLDOUTS.items() if path.exists()]
+    sets |= {name: ts.read_jsonl(HOLDOUTS[name]) for name in holds}
     x_train = head_features(head, [r["text"] for r in rows])
-    x_dev = head_features(head, [r["text"] for r in dev])
-    x_plain = head_features(head, [r["text"] for r in plain])
-    pm_d, pz_d = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_dev, head.temperature))
-    pm_p, pz_p = (np.asarray(a, np.float64) for a in sh.predict(head.params, x_plain, head.temperature))
-    holds = {name: ts.read_jsonl(path) for name, path in HOLDOUTS.items() if path.exists()}
-    x_hold = {name: head_features(head, [r["text"] for r in hr]) for name, hr in holds.items()}
-    p_hold = {
-        name: tuple(np.asarray(a, np.float64) for a in sh.predict(head.params, x_hold[name], head.temperature))
-        for name in holds
-    }
+    x = {n: head_features(head, [r["text"] for r in set_rows]) for n, set_rows in sets.items()}
+    p_head = {n: [np.asarray(a, np.float64) for a in sh.predict(head.params, x[n], head.temperature)] for n in sets}
+    pz = {n: p[1] for n, p in p_head.items()}  # the intensity stays the head's
+
+    def scored(pm: dict, refit: bool) -> dict:
+        """:func:`evaluate` of intent probabilities for every set (the head's intensities)."""
+        held = {n: (pm[n], pz[n], sets[n]) for n in holds}
+        return evaluate(pm["dev"], pz["dev"], sets["dev"], pm["plain"], pz["plain"], sets["plain"], refit, held=held)
+
     train_intent, _ = ts.labels(rows)
     style = np.array([r.get("style") or "" for r in rows])
-
-    base = evaluate(pm_d, pz_d, dev, pm_p, pz_p, plain, False, held={n: (*p_hold[n], holds[n]) for n in holds})
+    dev, plain = sets["dev"], sets["plain"]
+    base = scored({n: p[0] for n, p in p_head.items()}, False)
     assert base["threshold"] == head.threshold, "the refit must give the shipped head's threshold"
     print(
         f"shipped head: score {base['score']:.3f} situation {base['situation']:.3f} "
@@ -232,48 +234,29 @@ def main(argv=None) -> int:
         "situations+none": (style == "situation") | (train_intent == sh.NONE),
     }
     if args.write or args.chosen_only:
-        return write(
-            head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, (x_hold, holds), dry=not args.write
-        )
+        return write(head, x_train, train_intent, tables, x, p_head, scored, base, dry=not args.write)
     gates = {
-        "always": (
-            np.ones(len(dev), bool),
-            np.ones(len(plain), bool),
-            {n: np.ones(len(holds[n]), bool) for n in holds},
-        ),
-        "no motion words": (
-            no_motion_words(x_dev),
-            no_motion_words(x_plain),
-            {n: no_motion_words(x_hold[n]) for n in holds},
-        ),
+        "always": {n: np.ones(len(sets[n]), bool) for n in sets},
+        "no motion words": {n: no_motion_words(x[n]) for n in sets},
     }
     print(
-        f"no motion words: {gates['no motion words'][0].sum()} of {len(dev)} v2 dev texts, "
-        f"{gates['no motion words'][1].sum()} of {len(plain)} plain dev texts"
+        f"no motion words: {gates['no motion words']['dev'].sum()} of {len(dev)} v2 dev texts, "
+        f"{gates['no motion words']['plain'].sum()} of {len(plain)} plain dev texts"
     )
     variants = []
     for rep in ("sentence", "chosen", "pools", "hidden"):
-        q_d, q_p, t_all = (representation(rep, head.params, x) for x in (x_dev, x_plain, x_train))
-        q_h = {n: representation(rep, head.params, x_hold[n]) for n in holds}
-        for (tname, tmask), (gname, (g_d, g_p, g_h)) in itertools.product(tables.items(), gates.items()):
+        t_all = representation(rep, head.params, x_train)
+        q = {n: representation(rep, head.params, x[n]) for n in sets}
+        for (tname, tmask), (gname, gate) in itertools.product(tables.items(), gates.items()):
             if tname.startswith("situations") and gname == "always":
                 continue  # a situation-only table votes for every text only behind the gate
             for k, tau in itertools.product((5, 10, 20, 40), (0.0, 0.05)):
-                v_d = knn_vote(q_d, t_all[tmask], train_intent[tmask], k, tau)
-                v_p = knn_vote(q_p, t_all[tmask], train_intent[tmask], k, tau)
-                v_h = {n: knn_vote(q_h[n], t_all[tmask], train_intent[tmask], k, tau) for n in holds}
+                votes = {n: knn_vote(q[n], t_all[tmask], train_intent[tmask], k, tau) for n in sets}
                 for a, refit in itertools.product((0.1, 0.2, 0.3, 0.5, 0.7), (False, True)):
-                    bd = np.where(g_d[:, None], (1 - a) * pm_d + a * v_d, pm_d)
-                    bp = np.where(g_p[:, None], (1 - a) * pm_p + a * v_p, pm_p)
-                    bh = {
-                        n: (
-                            np.where(g_h[n][:, None], (1 - a) * p_hold[n][0] + a * v_h[n], p_hold[n][0]),
-                            p_hold[n][1],
-                            holds[n],
-                        )
-                        for n in holds
+                    blend = {
+                        n: np.where(gate[n][:, None], (1 - a) * p_head[n][0] + a * votes[n], p_head[n][0]) for n in sets
                     }
-                    r = evaluate(bd, pz_d, dev, bp, pz_p, plain, refit, held=bh)
+                    r = scored(blend, refit)
                     r |= dict(representation=rep, table=tname, gate=gname, k=k, tau=tau, a=a, refit_temperature=refit)
                     r["qualifies"] = qualifies(r, base)
                     variants.append(r)
@@ -334,16 +317,16 @@ def table_rows() -> tuple[list[dict], np.ndarray]:
     return rows, np.array(files)
 
 
-def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base, held, dry: bool = False) -> int:
+def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: bool = False) -> int:
     """Write :data:`CHOSEN` as ``assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
     blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule. Every other
-    table is scored the same way first, for the record. ``held``: the hold-outs' head inputs and rows (two dicts by
-    name). ``dry``: print the scores, write nothing."""
+    table is scored the same way first, for the record. ``x``, ``p_head``: each evaluation set's head inputs and
+    the head's probabilities, by name; ``scored``: their evaluation (main's). ``dry``: print the scores, write
+    nothing."""
     if CHOSEN["representation"] not in sh.KNN_POOLS:
         raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
     pool = sh.KNN_POOLS.index(CHOSEN["representation"])
-    x_hold, holds = held
-    gate = gate_vector(x_dev.shape[1] - 4 * POOL)
+    gate = gate_vector(x["dev"].shape[1] - 4 * POOL)
     if CHOSEN["gate"] == "always":
         gate = np.zeros_like(gate)
     refit = CHOSEN.get("refit_temperature", False)
@@ -354,15 +337,13 @@ def write(head, x_train, train_intent, tables, x_dev, x_plain, dev, plain, base,
         knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
         knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
 
-        def probs(x):
-            pm, pz = (np.asarray(a, np.float64) for a in sh.predict(head.params, x, head.temperature))
-            if len(x):
-                q = x[:, pool * POOL : (pool + 1) * POOL]
-                pm = np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, x[:, 4 * POOL :], CHOSEN["k"]))
-            return pm.astype(np.float64), pz
+        def vote(xs, pm):
+            if not len(xs):
+                return pm
+            q = xs[:, pool * POOL : (pool + 1) * POOL]
+            return np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, xs[:, 4 * POOL :], CHOSEN["k"]), np.float64)
 
-        h = {n: (*probs(x_hold[n]), holds[n]) for n in holds}
-        return table, labels, evaluate(*probs(x_dev), dev, *probs(x_plain), plain, refit, held=h)
+        return table, labels, scored({n: vote(x[n], p[0]) for n, p in p_head.items()}, refit)
 
     for name, mask in tables.items():
         if name != CHOSEN["table"]:

@@ -42,27 +42,12 @@ def cache_dir():
 
 @functools.lru_cache(maxsize=1)
 def enable_compilation_cache() -> str | None:
-    """Turn on JAX's persistent compilation cache (unless the user set one up or turned ours off), so a fresh
-    process loads the compiled encoder and head instead of compiling them (the first ``ground`` call then
-    costs the weights' load, not XLA). Returns the folder in use, or None."""
-    if jax.config.jax_compilation_cache_dir:  # the user's own cache wins
-        return jax.config.jax_compilation_cache_dir
-    path = cache_dir()
-    if path is None:
-        return None
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError:  # read-only home: compile every time, as before
-        return None
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    try:  # a cache already initialised (disabled) by an earlier compile in this process is re-read
-        from jax._src import compilation_cache
+    """Turn on JAX's persistent compilation cache (:func:`jgrounding.io.enable_compilation_cache`: unless the user
+    set one up or turned ours off), so a fresh process loads the compiled encoder and head instead of compiling
+    them (the first ``ground`` call then costs the weights' load, not XLA). Returns the folder in use, or None."""
+    from jgrounding import io
 
-        compilation_cache.reset_cache()
-    except Exception:  # pragma: no cover - private API; without it the cache starts with the next process
-        pass
-    return str(path)
+    return io.enable_compilation_cache()
 
 
 @functools.lru_cache(maxsize=1)

@@ -35,15 +35,11 @@ from jgrounding.sim.native import load_model
 
 
 def enable_compilation_cache(path: str | Path | None = None) -> None:
-    """Turn on JAX's persistent compilation cache in ``path`` (default: the machine's,
-    :func:`jgrounding.io.cache_dir`; nothing when ``JGROUNDING_CACHE=off``), so a compiled MJX rollout survives
-    the process: compiled once per machine, not once per process or clone."""
-    path = path if path is not None else io.cache_dir()
-    if path is None:
-        return
-    Path(path).mkdir(parents=True, exist_ok=True)
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    """Turn on JAX's persistent compilation cache (:func:`jgrounding.io.enable_compilation_cache`) in ``path``
+    (default: the machine's, :func:`jgrounding.io.cache_dir`, unless a folder is already set; nothing when
+    ``JGROUNDING_CACHE=off``), so a compiled MJX rollout survives the process: compiled once per machine, not once
+    per process or clone."""
+    io.enable_compilation_cache(path, min_compile_secs=1.0)
 
 
 @functools.lru_cache(maxsize=2)

@@ -21,13 +21,6 @@ NAMES_AN_ACTION = [
 ]
 
 
-@pytest.fixture(scope="module")
-def head():
-    h = sh.load()
-    assert h.knn is not None, "the shipped head comes with its nearest-neighbour table (assets/semantic_knn.npz)"
-    return h
-
-
 def test_table_matches_its_digest_and_the_shipped_head(head):
     with np.load(sh.KNN_ASSET) as f:
         meta = json.loads(str(f["meta"]))

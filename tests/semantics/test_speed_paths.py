@@ -17,13 +17,6 @@ TEXTS = [
 ]
 
 
-@pytest.fixture(scope="module")
-def head():
-    h = semantic_head.load()
-    assert h.config.inputs == "tuned", "the shipped head is the tuned one (these paths are its)"
-    return h
-
-
 def test_bucketed_padding_gives_the_full_length_result(head):
     params = head.encoder_params()
     structs = [structure.analyse(t) for t in TEXTS]
