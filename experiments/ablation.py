@@ -9,8 +9,9 @@ native MuJoCo on CPU, MJX on an accelerator; shape success under a tolerance cal
 library's own spread, shape diversity, feasibility), adds the physics-aware RF row (rejection-sampling
 fine-tuning on screened samples, :mod:`jgrounding.training.physics`), and writes
 results/ablation.{md,csv,json} plus results/ablation_rms.npz (per-sample RMS, reused by the sweeps).
-Every cell is mean ± std over seeds. The whole configuration (``jgrounding.config``: the named entry and its
-overrides) and what varies between machines (threads, XLA flags) are recorded in results/ablation.json.
+:func:`run` returns the typed :class:`experiments.ablation_result.AblationResult` (saved and loaded by that
+module). Every cell is mean ± std over seeds. The whole configuration (``jgrounding.config``: the named entry and
+its overrides) and what varies between machines (threads, XLA flags) are recorded in results/ablation.json.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from experiments import ablation_result
 from experiments.ablation_report import (
     BRACKETS,
     DISPLAY,
@@ -33,10 +35,10 @@ from experiments.ablation_report import (
     distribution_markdown,
     findings,
     fmt,
-    load,
     markdown,
     write,
 )
+from experiments.ablation_result import NO_PHYSICS, AblationResult, Environment, Physics, Reference, Row, Scores, Timing
 from jgrounding import config as configs
 from jgrounding import library, load_library, semantics, sim
 from jgrounding.config import Config
@@ -45,37 +47,25 @@ from jgrounding.evaluation import physics as trunk_eval
 from jgrounding.generators import methods
 from jgrounding.training import checkpoints, distributed, trainer
 
-_NAN = (float("nan"), float("nan"))
-NO_PHYSICS = {
-    "shape_rms_m": _NAN,
-    "shape_success": _NAN,
-    "shape_diversity_m": _NAN,
-    "feasible": _NAN,
-    "simulated": 0,
-    "samples": 0,
-    "physics_s": 0.0,
-    "engine": "skipped",
-}  # a library with N_u != 4
-
 
 def mean_std(x) -> tuple[float, float]:
     """Mean and sample std over seeds (ddof = 1)."""
     return distribution.mean_std(x)
 
 
-def distribution_row(u, intent, intensity, ev, r) -> dict:
+def distribution_row(u, intent, intensity, ev, r) -> Scores:
     """Benchmark v3 metrics of ``u (S, N, K, T, C)`` (S seeds or draws) against the evaluation set: per metric
     ``(mean, std)`` over S and the per-seed values (for tests between methods)."""
     per = [distribution.score(x, intent, intensity, ev, r=r).summary() for x in u]
     names = (*distribution.HEADLINE, "frechet", "prec_r_split")
-    return {
-        **{k: mean_std([p[k] for p in per]) for k in names},
-        "per_seed": {k: [float(p[k]) for p in per] for k in names},
-        "std_error": {k: distribution.std_error([p[k] for p in per]) for k in names},
-    }
+    return Scores(
+        mean_std={k: mean_std([p[k] for p in per]) for k in names},
+        per_seed={k: tuple(float(p[k]) for p in per) for k in names},
+        std_error={k: float(distribution.std_error([p[k] for p in per])) for k in names},
+    )
 
 
-def public_row(lib, cfg: Config, r, current, draws: int = 5) -> dict:
+def public_row(lib, cfg: Config, r, current, draws: int = 5) -> Scores:
     """The shipped model exactly as a user calls it: ``jg.sample(key, intents, intensities, num_samples=K,
     steps=S, current=...)`` over the 64 held-out tuples, ``draws`` keys; distribution metrics per draw."""
     from jgrounding.policy import sampling
@@ -128,21 +118,21 @@ def coverage(u, lib) -> np.ndarray:
     ).mean(axis=1)
 
 
-def physics(u, ref, tol, engine="auto"):
+def physics(u, ref, tol, engine="auto") -> Physics:
     """Every sample ``u (S, 64, K, T, 4)`` (S seeds) simulated against the held-out references' simulated
     backbones ``ref (64, T, 11, 3)``: shape RMS, shape success (all samples, ``<= tol.tau_m``), shape
     diversity and feasibility, each mean ± std over seeds; plus the rollouts' count and seconds."""
     res = [trunk_eval.simulate_samples(x, ref, tol.tau_m, engine=engine) for x in u]
-    return {
-        "shape_rms_m": mean_std([r["shape_rms"].mean() for r in res]),
-        "shape_success": mean_std([r["shape_success"].mean() for r in res]),
-        "shape_diversity_m": mean_std([r["diversity"].mean() for r in res]),
-        "feasible": mean_std([r["feasible"].mean() for r in res]),
-        "simulated": int(sum(r["simulated"] for r in res)),
-        "samples": int(np.prod(u.shape[:3])),
-        "physics_s": float(sum(r["seconds"] for r in res)),
-        "engine": res[0]["engine"],
-    }
+    return Physics(
+        shape_rms_m=mean_std([r["shape_rms"].mean() for r in res]),
+        shape_success=mean_std([r["shape_success"].mean() for r in res]),
+        shape_diversity_m=mean_std([r["diversity"].mean() for r in res]),
+        feasible=mean_std([r["feasible"].mean() for r in res]),
+        simulated=int(sum(r["simulated"] for r in res)),
+        samples=int(np.prod(u.shape[:3])),
+        seconds=float(sum(r["seconds"] for r in res)),
+        engine=res[0]["engine"],
+    )
 
 
 def rows_of(cfg: Config, simulate: bool = True) -> list[str]:
@@ -159,7 +149,7 @@ def rows_of(cfg: Config, simulate: bool = True) -> list[str]:
     ]
 
 
-def environment() -> dict:
+def environment() -> Environment:
     """What can make a re-run differ on another machine: threads, XLA flags, versions (recorded in results)."""
     import os
 
@@ -169,20 +159,56 @@ def environment() -> dict:
     except (OSError, StopIteration):
         pass
     isa = next((x for x in ("avx512f", "avx2", "avx") if f" {x} " in f"{flags} "), platform.machine())
-    return {
-        "cpu_isa": isa,  # XLA emits code for it: results reproduce bit for bit only on the same instruction set
-        "cpu_count": os.cpu_count(),
-        "XLA_FLAGS": os.environ.get("XLA_FLAGS", ""),
-        "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", ""),
-        "jax": jax.__version__,
-        "backend": jax.default_backend(),
-        "devices": jax.device_count(),
-        "numpy": np.__version__,
-        "python": platform.python_version(),
+    return Environment(
+        cpu_isa=isa,
+        cpu_count=os.cpu_count() or 1,
+        xla_flags=os.environ.get("XLA_FLAGS", ""),
+        omp_num_threads=os.environ.get("OMP_NUM_THREADS", ""),
+        jax=jax.__version__,
+        backend=jax.default_backend(),
+        devices=jax.device_count(),
+        numpy=np.__version__,
+        python=platform.python_version(),
+    )
+
+
+def references(lib, ev_cfg, ref_backbone, tol, simulate: bool) -> tuple[dict[str, Reference], dict[str, Physics]]:
+    """The paper-protocol references (replays over draws, the tuple mean, the library's brackets as expected
+    values) and the physics of the replayed ones; a partial (imported) library lacks some."""
+    refs = {
+        name: Reference(success=ref["success"], rms=ref["rms"])
+        for name, ref in metrics.reference_baselines(lib, seed=0, draws=max(len(ev_cfg.seeds), 5)).items()
     }
+    rng = np.random.default_rng(0)
+    ref_phys = {
+        name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, ev_cfg.engine)
+        if simulate
+        else NO_PHYSICS
+        for name in ("oracle", "wrong_intent_any_intensity")
+        if name in refs
+    }
+    mean_u = metrics.tuple_mean(lib)
+    r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
+    refs["tuple_mean"] = Reference(
+        success={float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS}, rms=(float(r_mean.mean()), 0.0)
+    )
+    ref_phys["tuple_mean"] = (
+        physics(mean_u[None, :, None], ref_backbone, tol, ev_cfg.engine) if simulate else NO_PHYSICS
+    )
+    # Brackets of the benchmark (library.brackets): expected values over the library, no sampling.
+    complete = len(lib.heldout) == 64 and len(lib.train) == 192  # an imported library may lack tuples
+    brackets, dist = (library.brackets(lib, metrics.TAUS), library.bracket_distances(lib)) if complete else ({}, {})
+    for name in BRACKETS if complete else ():
+        refs[name] = Reference(
+            success={t: (v, 0.0) for t, v in brackets[name].items()},
+            rms=(float(np.mean([x.mean() for x in dist[name]])), 0.0),
+        )
+    return refs, ref_phys
 
 
-def run(cfg: Config, lib=None) -> dict:
+def run(cfg: Config, lib=None) -> AblationResult:
+    """Train and evaluate every row of ``cfg.eval`` on ``lib`` (default: ``cfg.eval.library``), with the
+    references, benchmark v3 and the run's provenance; also saves each row's checkpoint under ``eval.runs``."""
     t_run = time.perf_counter()
     ev_cfg = cfg.eval
     lib = lib or load_library(ev_cfg.library)
@@ -215,6 +241,7 @@ def run(cfg: Config, lib=None) -> dict:
         )
     physics_s = time.perf_counter() - t_lib
     timing = {"library_simulation_s": physics_s, "train_s": 0.0, "evaluate_s": 0.0, "distribution_s": 0.0}
+    timing.update(public_s=None, distribution_references_s=None)
     ev = lib.evaluation
     radius = distribution.radius(ev) if ev is not None else None
     key = jax.random.key(2026)
@@ -262,28 +289,28 @@ def run(cfg: Config, lib=None) -> dict:
         )
         timing["distribution_s"] += time.perf_counter() - t_dist
         phys = physics(u, ref_backbone, tol, ev_cfg.engine) if simulate else NO_PHYSICS
-        physics_s += phys["physics_s"]
+        physics_s += phys.seconds
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= ev_cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
-        rows[method] = {
-            "success": mean_std(succ),
-            "success_all_samples": mean_std((r <= ev_cfg.tau).mean(axis=(1, 2))),
-            "rms": mean_std(r.mean(axis=(1, 2))),
-            "diversity": mean_std(div),
-            "coverage": mean_std(cov),
-            "time_ms": lat_ms,
-            "time_measures": latency.measures(trained),
-            "throughput_per_s": throughput,
-            "train_s": train_s,
-            "first_sample_success_per_seed": [float(x) for x in succ],
-            "distribution": dist_row,
-            **phys,
-        }
+        row = rows[method] = Row(
+            success=mean_std(succ),
+            success_all_samples=mean_std((r <= ev_cfg.tau).mean(axis=(1, 2))),
+            rms=mean_std(r.mean(axis=(1, 2))),
+            diversity=mean_std(div),
+            coverage=mean_std(cov),
+            time_ms=float(lat_ms),
+            time_measures=latency.measures(trained),
+            throughput_per_s=float(throughput),
+            train_s=train_s,
+            first_sample_success_per_seed=tuple(float(x) for x in succ),
+            distribution=dist_row,
+            physics=phys,
+        )
         per_sample[method] = r
         print(
-            f"{DISPLAY[method]:24s} success {rows[method]['success'][0]:.3f} ± {rows[method]['success'][1]:.3f}"
-            f"  div {rows[method]['diversity'][0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s  feasible "
-            f"{phys['feasible'][0]:.4f} over {phys['samples']} simulated samples ({phys['physics_s']:.0f} s)",
+            f"{DISPLAY[method]:24s} success {row.success[0]:.3f} ± {row.success[1]:.3f}"
+            f"  div {row.diversity[0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s  feasible "
+            f"{phys.feasible[0]:.4f} over {phys.samples} simulated samples ({phys.seconds:.0f} s)",
             flush=True,
         )
     public, dist_refs = {}, {}
@@ -293,7 +320,7 @@ def run(cfg: Config, lib=None) -> dict:
         timing["public_s"] = time.perf_counter() - t_pub
         print(
             "jg.sample (shipped model): Prec@r default current "
-            f"{fmt(public['default']['prec_r'])}, current=None {fmt(public['none']['prec_r'])}",
+            f"{fmt(public['default'].mean_std['prec_r'])}, current=None {fmt(public['none'].mean_std['prec_r'])}",
             flush=True,
         )
     if ev is not None:
@@ -303,57 +330,29 @@ def run(cfg: Config, lib=None) -> dict:
             for name, x in distribution.reference_samples(lib, k=ev_cfg.num_samples).items()
         }
         timing["distribution_references_s"] = time.perf_counter() - t_ref
-    refs = metrics.reference_baselines(lib, seed=0, draws=max(len(ev_cfg.seeds), 5))
-    rng = np.random.default_rng(0)
-    ref_phys = {
-        name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, ev_cfg.engine)
-        if simulate
-        else NO_PHYSICS
-        for name in ("oracle", "wrong_intent_any_intensity")
-        if name in refs
-    }
-    mean_u = metrics.tuple_mean(lib)
-    r_mean = np.asarray(metrics.rms(mean_u, lib.heldout.u))
-    refs["tuple_mean"] = {
-        "success": {float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS},
-        "rms": (float(r_mean.mean()), 0.0),
-    }
-    ref_phys["tuple_mean"] = (
-        physics(mean_u[None, :, None], ref_backbone, tol, ev_cfg.engine) if simulate else NO_PHYSICS
-    )
-    # Brackets of the benchmark (library.brackets): expected values over the library, no sampling.
-    complete = len(lib.heldout) == 64 and len(lib.train) == 192  # an imported library may lack tuples
-    brackets, dist = (library.brackets(lib, metrics.TAUS), library.bracket_distances(lib)) if complete else ({}, {})
-    for name in BRACKETS if complete else ():
-        refs[name] = {
-            "success": {t: (v, 0.0) for t, v in brackets[name].items()},
-            "rms": (float(np.mean([x.mean() for x in dist[name]])), 0.0),
-        }
-    physics_s += sum(p["physics_s"] for p in ref_phys.values())
+    refs, ref_phys = references(lib, ev_cfg, ref_backbone, tol, simulate)
+    physics_s += sum(p.seconds for p in ref_phys.values())
     timing["physics_s"] = physics_s
     timing["run_s"] = time.perf_counter() - t_run
-    return {
-        "config": configs.to_dict(cfg),
-        "rows_run": todo,
-        "environment": environment(),
-        "rows": rows,
-        "radius": radius,
-        "public": public,
-        "distribution_references": dist_refs,
-        "library_version": lib.meta.get("library_version"),
-        "timing": timing,
-        "references": refs,
-        "reference_physics": ref_phys,
-        "shape_tolerance": dataclasses.asdict(tol) if tol else None,
-        "physics_s": physics_s,
-        "run_s": time.perf_counter() - t_run,
-        "physics_engine": sim.resolve_engine(ev_cfg.engine),
-        "per_sample_rms": per_sample,
-        "samples": samples,
-        "date": datetime.datetime.now().isoformat(timespec="seconds"),
-        "machine": f"{platform.node()} · {platform.processor() or platform.machine()} · "
+    return AblationResult(
+        config=cfg,
+        rows=rows,
+        references=refs,
+        reference_physics=ref_phys,
+        distribution_references=dist_refs,
+        public=public,
+        radius=None if radius is None else float(radius),
+        shape_tolerance=tol,
+        physics_engine=sim.resolve_engine(ev_cfg.engine),
+        library_version=lib.meta.get("library_version"),
+        timing=Timing(**timing),
+        environment=environment(),
+        date=datetime.datetime.now().isoformat(timespec="seconds"),
+        machine=f"{platform.node()} · {platform.processor() or platform.machine()} · "
         f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})",
-    }
+        per_sample_rms=per_sample,
+        samples=samples,
+    )
 
 
 def cross_validate(cfg: Config, folds: int, only: int | None = None) -> int:
@@ -368,7 +367,7 @@ def cross_validate(cfg: Config, folds: int, only: int | None = None) -> int:
         fcfg = configs.override(cfg, f"eval.runs={Path(cfg.eval.runs) / f'fold{k}'}")
         res = run(fcfg, lib=library.fold(base, k))
         per_fold.append(res)
-        print(f"fold {k}: " + ", ".join(f"{m} {r['success'][0]:.3f}" for m, r in res["rows"].items()), flush=True)
+        print(f"fold {k}: " + ", ".join(f"{m} {r.success[0]:.3f}" for m, r in res.rows.items()), flush=True)
     tau = float(cfg.eval.tau)
     lines = [
         f"{folds}-fold cross-validation (each realization held out once: {folds * 64} targets), "
@@ -379,8 +378,8 @@ def cross_validate(cfg: Config, folds: int, only: int | None = None) -> int:
         "|---|---|---|",
     ]
     pooled = {}
-    for m in per_fold[0]["rows"]:
-        succ = np.stack([(f["per_sample_rms"][m][:, :, 0] <= tau).mean(axis=1) for f in per_fold])  # (folds, S)
+    for m in per_fold[0].rows:
+        succ = np.stack([(f.per_sample_rms[m][:, :, 0] <= tau).mean(axis=1) for f in per_fold])  # (folds, S)
         pooled[m] = {"success": mean_std(succ.mean(axis=0)), "per_fold": [float(x) for x in succ.mean(axis=1)]}
         lines.append(
             f"| {DISPLAY[m]} | {fmt(pooled[m]['success'])} | "
@@ -388,7 +387,7 @@ def cross_validate(cfg: Config, folds: int, only: int | None = None) -> int:
             + " |"
         )
     for name, label in REFERENCES:
-        vals = [f["references"][name]["success"][tau][0] for f in per_fold if name in f["references"]]
+        vals = [f.references[name].success[tau][0] for f in per_fold if name in f.references]
         if vals:
             lines.append(
                 f"| {label} | {np.mean(vals):.3f} ± {np.std(vals):.3f} (over folds) | "
@@ -396,7 +395,7 @@ def cross_validate(cfg: Config, folds: int, only: int | None = None) -> int:
                 + " |"
             )
     run_s = time.perf_counter() - t0
-    lines += ["", f"Run time: {run_s:.0f} s on {per_fold[0]['machine']}."]
+    lines += ["", f"Run time: {run_s:.0f} s on {per_fold[0].machine}."]
     text = "\n".join(lines) + "\n"
     write_atomic(Path(cfg.eval.out) / "ablation_folds.md", text)
     write_atomic(
@@ -414,19 +413,22 @@ def cross_validate(cfg: Config, folds: int, only: int | None = None) -> int:
 
 def rescore_public(cfg: Config) -> int:
     """Re-score only the shipped model's jg.sample rows of an existing <out>/ablation.json (after
-    ``experiments.ship`` replaced the shipped model) and rewrite <out>/ablation.{md,json}; Table II's rows,
+    ``experiments.ship`` replaced the shipped model) and rewrite <out>/ablation.{md,csv,json}; Table II's rows,
     trained under the paper's protocol, do not depend on the shipped model and are kept."""
     from jgrounding.policy import sampling
 
-    res = load(Path(cfg.eval.out))
+    res = ablation_result.load(cfg.eval.out)
     lib = load_library(cfg.eval.library)
     sampling.load.cache_clear()
     t0 = time.perf_counter()
-    res["public"] = {
-        name: public_row(lib, cfg, res["radius"], cur) for name, cur in (("default", "default"), ("none", None))
-    }
-    res["timing"]["public_s"] = time.perf_counter() - t0
-    res["public_rescored"] = datetime.datetime.now().isoformat(timespec="seconds")
+    public = {name: public_row(lib, cfg, res.radius, cur) for name, cur in (("default", "default"), ("none", None))}
+    res = dataclasses.replace(
+        res,
+        public=public,
+        timing=dataclasses.replace(res.timing, public_s=time.perf_counter() - t0),
+        public_rescored=datetime.datetime.now().isoformat(timespec="seconds"),
+    )
+    ablation_result.save(res, cfg.eval.out)
     write(res, cfg.eval.out)
     print(distribution_markdown(res))
     return 0
@@ -507,11 +509,12 @@ def main(argv=None) -> int:
     if args.folds:
         return cross_validate(cfg, args.folds, only=args.only_fold)
     res = run(cfg)
+    ablation_result.save(res, cfg.eval.out)
     write(res, cfg.eval.out)
     from experiments import ablation_figures
 
     if cfg.eval.library is None:  # the figures show tuples of the shipped library
-        for path in ablation_figures.write(res["samples"], load_library(), cfg.eval.out):
+        for path in ablation_figures.write(res.samples, load_library(), cfg.eval.out):
             print(f"wrote {path}")
     print()
     print(markdown(res))
@@ -520,8 +523,8 @@ def main(argv=None) -> int:
     print()
     print(distribution_markdown(res))
     print(
-        f"\nphysics (every sample simulated, engine {res['physics_engine']}): {res['physics_s']:.0f} s of the run's "
-        f"{res['run_s']:.0f} s ({100 * res['physics_s'] / res['run_s']:.0f}%)"
+        f"\nphysics (every sample simulated, engine {res.physics_engine}): {res.timing.physics_s:.0f} s of the run's "
+        f"{res.timing.run_s:.0f} s ({100 * res.timing.physics_s / res.timing.run_s:.0f}%)"
     )
     print(f"wrote {cfg.eval.out}/ablation.{{md,csv,json}} in {time.perf_counter() - t0:.0f} s")
     return 0

@@ -262,7 +262,7 @@ def ablation_rollouts(
 
 def ablation_throughput(pool, say, k_div: int = 30) -> None:
     """Simulated trajectories/s for the ablation's batch on each engine, and physics' share of the ablation."""
-    import json
+    from experiments import ablation_result
 
     batch = 64 * k_div
     u = pool[np.arange(batch) % len(pool)].reshape(64, k_div, 150, 4).copy()
@@ -286,15 +286,16 @@ def ablation_throughput(pool, say, k_div: int = 30) -> None:
     n = ablation_rollouts(k_div)
     say("")
     say(f"make ablation (defaults) simulates {n:,} distinct trajectories: {n / auto:.0f} s at the auto engine's rate.")
-    path = ROOT / "results" / "ablation.json"
-    last = json.loads(path.read_text()) if path.exists() else {}
-    if "physics_s" in last and "run_s" in last:
-        say(
-            f"Last ablation run (results/ablation.json, {last.get('date', '?')}): physics {last['physics_s']:.0f} s of "
-            f"{last['run_s']:.0f} s ({100 * last['physics_s'] / last['run_s']:.0f}%), engine {last.get('physics_engine')}."
-        )
-    else:
-        say("results/ablation.json predates the physics timing; run `make ablation` to measure physics' share.")
+    try:
+        last = ablation_result.load(ROOT / "results")
+    except (FileNotFoundError, ValueError) as e:
+        say(f"No last ablation run to compare with: {e}")
+        return
+    t = last.timing
+    say(
+        f"Last ablation run (results/ablation.json, {last.date}): physics {t.physics_s:.0f} s of "
+        f"{t.run_s:.0f} s ({100 * t.physics_s / t.run_s:.0f}%), engine {last.physics_engine}."
+    )
 
 
 if __name__ == "__main__":

@@ -134,8 +134,8 @@ def physics_rows(lib, sizes: dict, mjx_engine: str) -> list[str]:
         ref, tol = trunk_eval.library_references(lib, metrics.TAU_RMS, engine=engine)
         p = ablation.physics(u, ref[:n], tol, engine=engine)
         lines.append(
-            f"| {engine} | {p['shape_success'][0]:.3f} | {p['shape_rms_m'][0]:.4f} | {p['shape_diversity_m'][0]:.4f} "
-            f"| {p['feasible'][0]:.3f} | {p['samples']:,} | {p['physics_s']:.1f} |"
+            f"| {engine} | {p.shape_success[0]:.3f} | {p.shape_rms_m[0]:.4f} | {p.shape_diversity_m[0]:.4f} "
+            f"| {p.feasible[0]:.3f} | {p.samples:,} | {p.seconds:.1f} |"
         )
         print("  " + lines[-1], flush=True)
     return lines

@@ -127,7 +127,7 @@ def main(argv=None) -> int:
         from experiments.ablation import environment
 
         res = {"steps": args.steps, "seeds": args.seeds, "cpu_count": os.cpu_count(), "runs": {}}
-        res["cpu_isa"] = environment()["cpu_isa"]
+        res["cpu_isa"] = environment().cpu_isa
         for method in METHODS:
             res["runs"][method] = {}
             for label, flags in SETTINGS:

@@ -1,7 +1,7 @@
 """Sweeps beyond Table II: ``python -m experiments.sweep {tau_rms,steps,controls} [options]``.
 
-- ``tau_rms``: success per method for tau in {0.25, ..., 0.45} from results/ablation_rms.npz (run
-  ``make ablation`` first) and whether the method ordering at 0.35 holds at every tau; plot.
+- ``tau_rms``: success per method for tau in {0.25, ..., 0.45} from the per-sample RMS of the last ablation
+  (results/ablation.{json,npz} through :func:`experiments.ablation_result.load`; run ``make ablation`` first) and whether the method ordering at 0.35 holds at every tau; plot.
 - ``steps``: RF (Euler) and DDPM (DDIM with S steps; ancestral at the trained 50) for S = 1, 2, 4, 8, 16, 50:
   success, diversity and single-trajectory time; reuses the ablation's checkpoints in runs/ablation.
 - ``controls``: Tuple + Spline + RF trained with P = 3..8 spline controls (fewer seeds): success, diversity.
@@ -22,6 +22,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from experiments import ablation_result
 from jgrounding import load_library, semantics
 from jgrounding.actuation import splines
 from jgrounding.apps.plotting import plt, save
@@ -44,10 +45,10 @@ LOW_TAUS = (0.05, 0.10, 0.15, 0.20)  # beyond the paper's range: where do the me
 
 
 def sweep_tau(args) -> dict:
-    path = RESULTS / "ablation_rms.npz"
-    if not path.exists():
-        sys.exit(f"{path} not found: run `make ablation` (python -m experiments.ablation) first")
-    rms = dict(np.load(path))
+    try:
+        rms = ablation_result.load(RESULTS).per_sample_rms
+    except (FileNotFoundError, ValueError) as e:
+        sys.exit(str(e))
     taus = LOW_TAUS + metrics.TAUS
     order = [m for m in methods.METHODS if m in rms]  # the paper's ordering, worst to best
     table = {m: {t: mean_std((rms[m][:, :, 0] <= t).mean(1)) for t in taus} for m in order}

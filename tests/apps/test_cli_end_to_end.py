@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from experiments import ablation_result
 from jgrounding import safety
 from jgrounding.apps import export
 
@@ -101,8 +102,8 @@ def test_quick_ablation_end_to_end(tmp_path):
     argv = ["--quick", "--steps", "30", "--set", "eval.num_samples=2", "--out", str(tmp_path)]
     p = run("experiments.ablation", *argv, timeout=900)
     assert p.returncode == 0, p.stderr[-2000:]
-    res = json.loads((tmp_path / "ablation.json").read_text())
-    rows = res["rows"]
+    res = ablation_result.load(tmp_path)
+    rows = res.rows
     assert set(rows) == {
         "raw_dense_cnn",
         "tuple_dense_cnn",
@@ -112,15 +113,15 @@ def test_quick_ablation_end_to_end(tmp_path):
         "tuple_spline_rf_physics",
     }
     for r in rows.values():
-        assert 0.0 <= r["success"][0] <= 1.0 and 0.0 <= r["feasible"][0] <= 1.0 and r["time_ms"] > 0
-        assert r["samples"] == 64 * 2 * 2  # every generated sample simulated (K_div x 64 x seeds)
-    cnn_div = max(rows[m]["diversity"][0] for m in rows if m.endswith("cnn"))
-    assert cnn_div < 1e-6 < rows["tuple_spline_rf"]["diversity"][0]  # RF beats the CNNs on diversity
+        assert 0.0 <= r.success[0] <= 1.0 and 0.0 <= r.physics.feasible[0] <= 1.0 and r.time_ms > 0
+        assert r.physics.samples == 64 * 2 * 2  # every generated sample simulated (K_div x 64 x seeds)
+    cnn_div = max(rows[m].diversity[0] for m in rows if m.endswith("cnn"))
+    assert cnn_div < 1e-6 < rows["tuple_spline_rf"].diversity[0]  # RF beats the CNNs on diversity
     assert (tmp_path / "ablation.md").read_text().count("|") > 50
     assert (tmp_path / "ablation.csv").read_text().count("\n") == 7
-    cfg = res["config"]  # the whole composed config is recorded: the named entry with the run's overrides
-    assert (cfg["train"]["steps"], cfg["eval"]["num_samples"], cfg["eval"]["seeds"]) == (30, 2, [0, 1])
-    assert res["environment"]["cpu_count"] >= 1 and res["environment"]["cpu_isa"]
+    cfg = res.config  # the whole composed config is recorded: the named entry with the run's overrides
+    assert (cfg.train.steps, cfg.eval.num_samples, cfg.eval.seeds) == (30, 2, (0, 1))
+    assert res.environment.cpu_count >= 1 and res.environment.cpu_isa
 
 
 def test_interactive_loop_keeps_history(tmp_path):
