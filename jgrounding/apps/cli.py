@@ -131,6 +131,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="units of commands.csv/json: normalized pull in [0, 1] (default) or, for a checkpoint trained "
         "on an imported library, the lab's own units from the import's limits",
     )
+    p.add_argument(
+        "--allow-library-mismatch",
+        action="store_true",
+        help="use a --checkpoint trained on another version of its library (refused otherwise)",
+    )
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--quiet", action="store_true", help="print only the output folder")
     mode.add_argument("--jsonl", action="store_true", help="print JSON lines (one per event)")
@@ -153,15 +158,13 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from jgrounding import vocabulary
-    from jgrounding.apps import export, plotting
+    from jgrounding.apps import export, own, plotting
     from jgrounding.io import write_atomic
-    from jgrounding.policy import sampling
+    from jgrounding.policy.respond import Responder
 
     say = _Printer(args.quiet, args.jsonl)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-
-    from jgrounding.apps import own
 
     info = own.import_info(args.checkpoint)
     if args.units == "lab" and info is None:
@@ -169,20 +172,20 @@ def run(args: argparse.Namespace) -> int:
             f"--units lab needs a checkpoint trained on an imported library (its card holds the limits); "
             f"--checkpoint {args.checkpoint} has none"
         )
-    if args.intent is not None:
-        intent, intensity = args.intent, args.intensity or "moderate"
+    responder = Responder(args.checkpoint, allow_library_mismatch=args.allow_library_mismatch, backend=args.backend)
+    t0 = time.perf_counter()
+    decision = responder.decide(
+        args.text if args.intent is None else None, intent=args.intent, intensity=args.intensity, force=args.force
+    )
+    intent, intensity, g = decision.intent, decision.intensity, decision.grounding
+    if g is None:
         given = "[given]" if args.intensity else "[intent given; intensity not given: the default 'moderate']"
         say("tuple", f"tuple: ({intent}, {intensity}) {given}", intent=intent, intensity=intensity)
-        confidence, hold = None, False
+        confidence = None
     else:
-        from jgrounding.semantics import HOLD_STILL, ground
-
-        t0 = time.perf_counter()
-        g = ground(args.text, backend=args.backend)
-        g, note = own.restrict(g, args.checkpoint)  # the checkpoint's tuples only
-        if note:
-            say("restricted", f"note: {note}", note=note)
-        intent, intensity, confidence = g.intent, g.intensity, float(g.confidence)
+        if decision.note:
+            say("restricted", f"note: {decision.note}", note=decision.note)
+        confidence = float(g.confidence)
         say(
             "tuple",
             f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
@@ -193,62 +196,45 @@ def run(args: argparse.Namespace) -> int:
             backend=g.backend,
             confident=g.confident,
         )
-        hold = not g.confident and not args.force
-        if not g.confident:
-            action = HOLD_STILL + " (use --force to drive the tuple)" if hold else "driving it anyway (--force)"
-            why = g.reason or "low confidence"
+        if decision.forced:
             say(
                 "warning",
-                f"holding still: {why}; {action}" if hold else f"warning: {why}; {action}",
-                reason=why,
-                hold_still=hold,
+                f"warning: {decision.reason}; driving it anyway (--force)",
+                reason=decision.reason,
+                hold_still=False,
             )
-
     t0 = time.perf_counter()
-    kwargs = dict(
-        num_samples=args.samples,
+    outcome = responder.act(
+        jax.random.key(args.seed),
+        decision,
+        args.samples,
+        current=args.current,
+        screen=args.screen,
         sampler=args.sampler,
         steps=args.steps,
-        checkpoint=args.checkpoint,
-        current=args.current,
     )
+    hold = decision.hold
+    u = np.asarray(outcome.u).reshape((-1,) + np.shape(outcome.u)[-2:])
     if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give
-        shape = (
-            (150, 4)
-            if args.checkpoint is None
-            else np.shape(
-                sampling.sample(
-                    jax.random.key(args.seed), intent, intensity, num_samples=1, steps=1, checkpoint=args.checkpoint
-                )
-            )[-2:]
-        )
-        u = np.zeros((args.samples,) + tuple(shape), np.float32)
-        if args.current != "rest":
-            if len(args.current) != shape[-1]:
-                raise ValueError(f"--current has {len(args.current)} values; the generator drives {shape[-1]} tendons")
-            u[...] = np.asarray(args.current, np.float32)
+        say("warning", f"{outcome.message} (use --force to drive the tuple)", reason=decision.reason, hold_still=True)
         say(
             "hold",
             f"hold still: {u.shape[0]} constant command streams of shape {u.shape[1:]}",
             num_samples=int(u.shape[0]),
             hold_still=True,
         )
-    elif args.screen:
-        res = sampling.screened(jax.random.key(args.seed), intent, intensity, **kwargs)
-        u = res.u
-        say(
-            "screen",
-            f"screened on the trunk ({res.engine}): {res.candidates} candidates simulated, "
-            f"{res.rejected} rejected as infeasible, {args.samples} kept "
-            f"[{1e3 * res.seconds:.0f} ms of simulation]",
-            candidates=res.candidates,
-            rejected=res.rejected,
-            engine=res.engine,
-        )
     else:
-        u = sampling.sample(jax.random.key(args.seed), intent, intensity, **kwargs)
-    if not hold:
-        u = np.asarray(u).reshape((-1,) + np.shape(u)[-2:])
+        res = outcome.screened
+        if res is not None:
+            say(
+                "screen",
+                f"screened on the trunk ({res.engine}): {res.candidates} candidates simulated, "
+                f"{res.rejected} rejected as infeasible, {args.samples} kept "
+                f"[{1e3 * res.seconds:.0f} ms of simulation]",
+                candidates=res.candidates,
+                rejected=res.rejected,
+                engine=res.engine,
+            )
         say(
             "sample",
             f"sampled {u.shape[0]} trajectories of shape {u.shape[1:]}, blended in from "

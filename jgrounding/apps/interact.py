@@ -105,8 +105,7 @@ def _loop(args, stdin, stdout, state) -> int:
     import jax
 
     from jgrounding.apps import own, plotting
-    from jgrounding.policy import sampling
-    from jgrounding.semantics import HOLD_STILL, ground
+    from jgrounding.policy.respond import Decision, Responder
 
     out = Path(args.out)
     history: list[tuple[str, str]] = []
@@ -115,6 +114,7 @@ def _loop(args, stdin, stdout, state) -> int:
     pending = None  # a low-confidence grounding held back, for :force
     turn = 0
     info = own.import_info(args.checkpoint)
+    responder = Responder(args.checkpoint, backend=args.backend)
     labels = info["channels"] if info else None
     model = f"checkpoint {args.checkpoint}" if args.checkpoint else "the shipped model"
     print(f"jgrounding interactive ({model}): type a response, 'obs: scene | utterance', or :help", file=stdout)
@@ -165,45 +165,42 @@ def _loop(args, stdin, stdout, state) -> int:
             if pending is None:
                 print("nothing held back to force", file=stdout)
                 continue
-            g, pending = pending, None
-            print(f"forcing ({g.intent}, {g.intensity})", file=stdout)
+            decision, pending = pending, None
+            print(f"forcing ({decision.intent}, {decision.intensity})", file=stdout)
         else:
             try:
-                g = ground(text, backend=args.backend)
+                decision = responder.decide(text, force=args.force)
             except (ValueError, TypeError) as e:
                 print(f"error: {e}", file=stdout)
                 continue
-            g, note = own.restrict(g, args.checkpoint)
-            if note:
-                print(f"   note: {note}", file=stdout)
-            flag = "" if g.confident else f"  (not acting: {g.reason or 'low confidence'})"
+            g = decision.grounding
+            if decision.note:
+                print(f"   note: {decision.note}", file=stdout)
+            flag = f"  (not acting: {decision.reason})" if decision.reason else ""
             print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
-            if not g.confident and not args.force:
-                pending = g
-                why = g.reason or "low confidence"
-                print(f"   holding still ({why}): {HOLD_STILL}. Type :force to drive it anyway.", file=stdout)
+            if decision.hold:
+                pending = Decision(decision.intent, decision.intensity, g, decision.note, False, decision.reason)
+                print(f"   {decision.message(state['current'])}. Type :force to drive it anyway.", file=stdout)
                 stdout.flush()
                 continue
         pending = None
         turn += 1
-        history.append((g.intent, g.intensity))
+        history.append((decision.intent, decision.intensity))
         key = jax.random.fold_in(jax.random.key(args.seed), turn)
-        kw = dict(num_samples=8, current=state["current"], checkpoint=args.checkpoint)
         try:
-            if args.screen:
-                res = sampling.screened(key, g.intent, g.intensity, **kw)
-                u = res.u
-                print(f"   screened: {res.rejected} of {res.candidates} candidates rejected as infeasible", file=stdout)
-            else:
-                u = sampling.sample(key, g.intent, g.intensity, **kw)
+            outcome = responder.act(key, decision, 8, current=state["current"], screen=args.screen)
         except ValueError as e:
             print(f"error: {e}", file=stdout)
             continue
+        u = outcome.u
+        if outcome.screened is not None:
+            res = outcome.screened
+            print(f"   screened: {res.rejected} of {res.candidates} candidates rejected as infeasible", file=stdout)
         last = u[0]
         state["current"] = last[-1]  # the next response starts from where this one leaves the robot
         stream.append(last)
         _save_stream(out, stream)
-        title = f"{g.intent} / {g.intensity}"
+        title = f"{decision.intent} / {decision.intensity}"
         print(
             f"   tendons: {plotting.tendon_figure(u, out / f'turn{turn:03d}.png', title=title, labels=labels)}",
             file=stdout,
