@@ -77,83 +77,41 @@ class RequestError(Exception):
 
 
 class Policy:
-    """The shipped model (or a lab's ``checkpoint``) and the grounding, loaded and compiled once."""
+    """The server's handle on the one decision path (:class:`jgrounding.policy.respond.Responder`): the shipped
+    model (or a lab's ``checkpoint``) and the grounding, loaded and compiled once. Groundings are snapped onto
+    the checkpoint's tuples and held or moved exactly as the CLI does."""
 
     def __init__(self, checkpoint: str | Path | None = None, allow_library_mismatch: bool = False, warm: bool = True):
-        import jgrounding as jg
-        from jgrounding.policy import sampling
-        from jgrounding.training import checkpoints
+        from jgrounding.policy.respond import Responder
 
-        self.checkpoint = None if checkpoint is None else str(checkpoint)
-        self.allow_library_mismatch = bool(allow_library_mismatch)
-        model = sampling.model(self.checkpoint, self.allow_library_mismatch)  # refusals happen here, at start
-        path = Path(self.checkpoint) if self.checkpoint else sampling.DEFAULT_CHECKPOINT
-        meta = checkpoints.read_meta(path)
-        self.num_tendons = model.trained.num_tendons
-        self.first_tuple = min(model.covered) if model.covered else (0, 0)
-        try:
-            from jgrounding.generators import methods
-
-            methods.check_start_conditioning(model.trained.method)
-            self.start_conditioning = True
-        except ValueError:  # another generator: streams blend in from the command instead
-            self.start_conditioning = False
-        self.model_info = {
-            "package_version": jg.__version__,
-            "checkpoint": path.name if self.checkpoint is None else str(path),
-            "shipped": self.checkpoint is None,
-            "few_step_checkpoints": self._few_step() if self.checkpoint is None else [],
-            "method": model.trained.method,
-            "library_version": meta.get("library_version", "unknown"),
-            "library_sha256": (meta.get("library_sha256") or "")[:12],
-            "params_sha256": (meta.get("params_sha256") or "")[:12],
-            "train_step": meta.get("step"),
-            "num_tendons": self.num_tendons,
-            "num_controls": model.trained.num_controls,
-        }
-        self._ground = jg.ground
-        self._sample = jg.sample
+        self.responder = Responder(checkpoint, allow_library_mismatch=allow_library_mismatch)
+        self.checkpoint = self.responder.checkpoint
+        self.allow_library_mismatch = self.responder.allow_library_mismatch
+        self.responder.model  # noqa: B018  (refusals happen here, at start)
+        self.num_tendons = self.responder.num_tendons
+        self.start_conditioning = self.responder.inpaints  # else streams blend in from the command
+        self.model_info = self.responder.info
         if warm:
             self.warm()
 
-    @staticmethod
-    def _few_step() -> list:
-        from jgrounding.policy import sampling
-
-        manifest = json.loads(sampling.SHIPPED.read_text()) if sampling.SHIPPED.exists() else {}
-        return [dict(e) for e in manifest.get("few_step", [])]
-
     def warm(self) -> None:
-        """Compile what the server answers most (single samples, blended and start-conditioned; the grounding)."""
-        import jax
-
-        from jgrounding.semantics import encoder
-
-        self.ground("User seems sad; respond calmly")
-        for bucket in encoder.BUCKETS:  # one encoder program per padded text length
-            self.ground(" ".join(["calm"] * max(1, bucket - 3)))
+        """Compile what the server answers most (the Responder's warm-up, and the stream's own gated plans)."""
+        self.responder.warm()
         rest = np.zeros(self.num_tendons, np.float32)
-        glide_to_rest(rest + 0.5), hold(rest)  # the stream's own gated plans
-        mid = np.full(self.num_tendons, 0.3, np.float32)
-        m, z = self.first_tuple
-        for steps in sorted({50, 2} if self.checkpoint is None else {50}):
-            for start in {False, self.start_conditioning}:
-                self.sample(jax.random.key(0), m, z, 1, steps=steps, current=mid, start_conditioned=start)
-            self.sample(jax.random.key(0), m, z, 1, steps=steps, current="rest")
+        glide_to_rest(rest + 0.5), hold(rest)
+
+    def decide(self, text: str, force: bool = False):
+        """:meth:`Responder.decide` of a text: the grounding on this checkpoint's tuples and whether to hold."""
+        return self.responder.decide(text, force=force)
 
     def ground(self, text: str):
-        return self._ground(text)
+        return self.decide(text).grounding
+
+    def hold(self, current, num_samples: int = 1) -> np.ndarray:
+        return self.responder.hold(current, num_samples)
 
     def sample(self, key, intent, intensity, num_samples=1, **kwargs) -> np.ndarray:
-        return self._sample(
-            key,
-            intent,
-            intensity,
-            num_samples,
-            checkpoint=self.checkpoint,
-            allow_library_mismatch=self.allow_library_mismatch,
-            **kwargs,
-        )
+        return self.responder.trajectory(key, intent, intensity, num_samples, **kwargs)
 
     @staticmethod
     def rollout(u: np.ndarray) -> np.ndarray:
@@ -353,8 +311,12 @@ class Server:
     # -- requests --
 
     async def ground(self, msg: dict) -> dict:
-        g = await self._call(self.policy.ground, _text(msg, self.limits))
-        return {"grounding": grounding_dict(g), "hold_still": not g.confident}
+        decision = await self._call(self.policy.decide, _text(msg, self.limits))
+        return {
+            "grounding": {**grounding_dict(decision.grounding), "note": decision.note},
+            "hold_still": decision.hold,
+            "message": decision.message(),
+        }
 
     async def sample(self, msg: dict) -> dict:
         import jax
@@ -372,10 +334,11 @@ class Server:
         if "text" in msg:
             if "intent" in msg or "intensity" in msg:
                 raise RequestError("give either text or intent/intensity, not both")
-            g = await self._call(self.policy.ground, _text(msg, lim))
-            grounding = grounding_dict(g)
-            intent, intensity, n = g.intent, g.intensity, 1
+            decision = await self._call(self.policy.decide, _text(msg, lim), force)
+            grounding = {**grounding_dict(decision.grounding), "note": decision.note}
+            intent, intensity, n = decision.intent, decision.intensity, 1
         else:
+            decision = None
             intent, intensity, n = _tuples(msg, lim)
         if n * num_samples > lim.max_trajectories:
             raise RequestError(
@@ -385,13 +348,10 @@ class Server:
             )
         if start_conditioned and current is None:
             raise RequestError("start_conditioned needs current ('rest' or a command per tendon)")
-        hold = grounding is not None and not grounding["confident"] and not force
+        hold = decision is not None and decision.hold
         t0 = time.perf_counter()
         if hold:  # as the CLI does: the current command, held, in the shape a sample would have
-            start = safety.current_command(current if current is not None else safety.REST, self.policy.num_tendons)
-            u = np.broadcast_to(start, (num_samples, 150, self.policy.num_tendons))
-            u = safety.emit(u, num_channels=self.policy.num_tendons, current=start)
-            u = u[0] if num_samples == 1 else u
+            u = self.policy.hold(current, num_samples)
         else:
             try:
                 u = await self._call(
@@ -411,6 +371,7 @@ class Server:
             "u": np.asarray(u, np.float32),
             "grounding": grounding,
             "hold_still": hold,
+            "message": decision.message(current) if hold else None,
             "seed": seed,
             "steps": steps,
             "start_conditioned": start_conditioned,
@@ -714,11 +675,11 @@ class Stream:
         lim = self.conn.server.limits
         force = _bool(msg, "force")
         seed = _int(msg, "seed", secrets.randbelow(1 << 31), 0, (1 << 31) - 1)
-        grounding = None
+        grounding = decision = None
         if "text" in msg:
-            g = await self.conn.server._call(self.policy.ground, _text(msg, lim))
-            grounding = grounding_dict(g)
-            intent, intensity = g.intent, g.intensity
+            decision = await self.conn.server._call(self.policy.decide, _text(msg, lim), force)
+            grounding = {**grounding_dict(decision.grounding), "note": decision.note}
+            intent, intensity = decision.intent, decision.intensity
         else:
             intent, intensity, n = _tuples(msg, lim)
             if n != 1:
@@ -730,7 +691,7 @@ class Stream:
             lead = min(CONTROL_HZ * 2, max(LEAD_TICKS, math.ceil(1.5 * self.model_s * CONTROL_HZ) + 1))
             s = self.tick + lead
             start = self.command_at(s).copy()
-            if grounding is not None and not grounding["confident"] and not force:
+            if decision is not None and decision.hold:
                 plan, state = hold(start), "hold"
             else:
                 t_model = time.perf_counter()

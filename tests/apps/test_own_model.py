@@ -137,3 +137,58 @@ def test_interact_ends_cleanly_at_end_of_input(tmp_path):
     assert out.getvalue().endswith("the trunk is at rest; bye\n")
     with pytest.raises(SystemExit):
         interact.main(["--checkpoint", str(tmp_path / "nope")], io.StringIO(""), io.StringIO())
+
+
+@pytest.mark.parametrize("model", ["shipped", "own"])
+def test_cli_and_server_give_the_same_decision_and_trajectory(model, own_checkpoint, tmp_path):
+    """One decision path (issue #33): for the same text, key and checkpoint the CLI and the server snap, hold
+    or move alike and return the same trajectory, for the built-in model and a lab's model (which knows only
+    some tuples: another intensity snaps to the nearest learned one, an unlearned intent holds still)."""
+    from jgrounding.apps import server
+    from jgrounding.client import Client
+
+    checkpoint = None if model == "shipped" else own_checkpoint
+    run = server.Running(server.Server(server.Policy(checkpoint, warm=False)))
+    try:
+        client = Client(run.url)
+        for i, text in enumerate(["Nod gently, just a little", "User seems sad; respond calmly", "Wave hello!"]):
+            out = tmp_path / f"{model}{i}"
+            argv = [text, "--seed", "3", "--samples", "2", "--no-render", "--out", str(out)]
+            assert cli.main(argv + (["--checkpoint", str(checkpoint)] if checkpoint else [])) == 0
+            header, _ = export.read_command_stream_csv(out / "commands.csv")
+            reply = client.sample(text, num_samples=2, seed=3)  # the server's defaults, as a robot calls it
+            assert reply["hold_still"] == bool(header.get("hold_still")), text
+            assert (reply["grounding"]["intent"], reply["grounding"]["intensity"]) == (
+                header["intent"],
+                header["intensity"],
+            ), text
+            np.testing.assert_allclose(reply["u"], np.load(out / "samples.npy"), atol=1e-6, err_msg=text)
+            if reply["hold_still"]:
+                assert reply["message"].startswith("holding still: ")
+    finally:
+        run.stop()
+
+
+def test_server_stream_snaps_or_holds_for_a_lab_model(own_checkpoint):
+    """A lab's model behind the stream: an unlearned intent holds still with its reason and another intensity
+    of a learned intent moves, never an error."""
+    from jgrounding.apps import server
+    from jgrounding.client import Client
+
+    run = server.Running(server.Server(server.Policy(own_checkpoint, warm=False)))
+    try:
+        client = Client(run.url)
+        sad = client.request({"type": "ground", "text": "User seems sad; respond calmly"})
+        assert sad["hold_still"] and sad["message"].startswith("holding still: ") and not sad["grounding"]["confident"]
+        nod = client.sample("Nod gently, just a little", seed=1)
+        assert not nod["hold_still"] and nod["grounding"]["intensity"] == "moderate" and nod["grounding"]["note"]
+        stream = client.stream(steps=2)
+        stream.respond("User seems sad; respond calmly")
+        stream.respond("Nod gently, just a little")
+        for i, _ in enumerate(stream):
+            if len(stream.responses) == 2 or i > 600:
+                break
+        assert [r["hold_still"] for r in stream.responses] == [True, False]
+        stream.stop()
+    finally:
+        run.stop()
