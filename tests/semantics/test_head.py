@@ -71,7 +71,7 @@ def test_interactive_loop_emits_no_motion_for_junk(tmp_path):
     interact.main(["--out", str(tmp_path)], stdin=io.StringIO("jkl;\n:history\n:force\n:quit\n"), stdout=out)
     text = out.getvalue()
     before_force = text.split("forcing")[0]
-    assert "holding still (" + jg.ground("jkl;").reason in before_force and "tendons:" not in before_force
+    assert "holding still: " + jg.ground("jkl;").reason in before_force and "tendons:" not in before_force
     assert "(empty)" in before_force  # nothing was driven, so nothing entered the history
     assert "tendons:" in text.split("forcing")[1] and (tmp_path / "turn001.png").exists()
 
