@@ -1,6 +1,6 @@
 """The demonstration library: coded elephant primitives, response texts, simulation screening, the
 256-pair expert library built from them (``jg.load_library``), its brackets, and the importer of a
-lab's own recordings (``python -m jgrounding.library import DIR``)."""
+lab's own recordings (:mod:`jgrounding.library.importer`, ``python -m jgrounding.library import DIR``)."""
 
 from jgrounding.library.build import (  # noqa: F401  (re-exported: the library's public surface)
     ASSETS,

@@ -1,5 +1,5 @@
 """``python -m jgrounding.library import DIR --out my_library.npz``: import recorded demonstrations."""
 
-from jgrounding.library import importer
+from jgrounding.library.importer import main
 
-raise SystemExit(importer.main())
+raise SystemExit(main())

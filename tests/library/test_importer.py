@@ -112,7 +112,8 @@ def test_library_loads_and_cli_writes_npz_and_card(tmp_path, capsys):
         (
             "columns",
             lambda p: p.write_text("time,a,b,c\n" + "".join(f"{i},5,5,5\n" for i in range(20))),
-            r"line 1: 3 tendon column\(s\) \['a', 'b', 'c'\], but 4 tendon limits",
+            r"line 1: tendon columns \['a', 'b', 'c'\] do not match \['pull_0', 'pull_1', 'pull_2', 'pull_3'\] "
+            r"\(the tendon columns of nodding_moderate_1.csv, in the order of the limits\)",
         ),
         (
             "limits",
