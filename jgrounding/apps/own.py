@@ -11,11 +11,10 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
-from jgrounding.vocabulary import INTENSITIES, INTENTS
+from jgrounding.vocabulary import INTENTS  # noqa: F401  (re-exported: the names restrict's groundings use)
 
 
 def checkpoint_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
@@ -27,53 +26,12 @@ def checkpoint_tuples(checkpoint) -> tuple[tuple[int, int], ...] | None:
     return checkpoints.trained_tuples(checkpoints.read_meta(checkpoint))
 
 
-def _names(tuples) -> str:
-    return ", ".join(f"{INTENTS[m]}/{INTENSITIES[z]}" for m, z in sorted(tuples))
-
-
 def restrict(g, checkpoint):
-    """``(grounding, note)``: ``g`` moved onto the checkpoint's tuples, and what was changed (None: nothing).
+    """``(grounding, note)``: ``g`` moved onto the checkpoint's tuples, and what was changed (None: nothing);
+    :func:`jgrounding.policy.respond.snap` on the tuples of ``checkpoint`` (the one copy of the rule)."""
+    from jgrounding.policy.respond import snap
 
-    The same intent at another intensity: the recorded intensity nearest to the asked one (the lower on a
-    tie) replaces it and the grounding stays as confident as it was. An intent the checkpoint never learned:
-    the learned intent with the highest score in ``g.scores`` (the first learned one when the backend gives
-    no scores) at its intensity nearest to the asked one, ``confident=False``: the text asked for something
-    this model cannot do, so the apps hold still unless forced.
-    """
-    tuples = checkpoint_tuples(checkpoint)
-    if tuples is None or (g.intent_index, g.intensity_index) in tuples:
-        return g, None
-    asked = f"({g.intent}, {g.intensity})"
-    same = sorted((abs(z - g.intensity_index), z) for m, z in tuples if m == g.intent_index)
-    if same:
-        z = same[0][1]
-        note = (
-            f"the text asked for {asked}; checkpoint {checkpoint} learned {g.intent} only at "
-            f"{', '.join(INTENSITIES[b] for _, b in sorted(same, key=lambda s: s[1]))}: using the nearest, "
-            f"({g.intent}, {INTENSITIES[z]})"
-        )
-        return dataclasses.replace(g, intensity=INTENSITIES[z]), note
-    intents = sorted({m for m, _ in tuples})
-    scores = list(g.scores) if len(g.scores) == len(INTENTS) else None
-    m = max(intents, key=lambda i: scores[i]) if scores else intents[0]
-    z = min((abs(b - g.intensity_index), b) for a, b in tuples if a == m)[1]
-    score = f" (score {scores[m]:.2f})" if scores else ""
-    note = (
-        f"the text asked for {asked}, outside the tuples checkpoint {checkpoint} was trained on "
-        f"({_names(tuples)}); its nearest is ({INTENTS[m]}, {INTENSITIES[z]}){score}"
-    )
-    reason = f"asked for {asked}, which this checkpoint never learned"
-    return (
-        dataclasses.replace(
-            g,
-            intent=INTENTS[m],
-            intensity=INTENSITIES[z],
-            confidence=float(scores[m]) if scores else 0.0,
-            confident=False,
-            reason=reason,
-        ),
-        note,
-    )
+    return snap(g, checkpoint_tuples(checkpoint), checkpoint)
 
 
 def import_info(checkpoint) -> dict | None:
