@@ -20,7 +20,6 @@ numbers; nothing here asserts them.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import subprocess
 import sys
@@ -110,7 +109,7 @@ def step_rows(lib, reps: int, batch_reps: int, peak: float) -> tuple[list[str], 
         model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
         cond = model.intent_emb[ho.intent]
         single = latency.jg_sample_ms(ho.intent, ho.intensity, key, steps=s, reps=reps)
-        config = dataclasses.replace(model.trained.sample_config, sampler=None, steps=s)
+        config = model.config(None, s)  # the config jg.sample(steps=s) samples with
         core = latency.core_ms(model.trained, cond, ho.intensity, key, config, reps=reps, like_public=True)
         keys = iter(jax.random.split(key, batch_reps + 1))
         many = 1e3 * median_s(
@@ -150,7 +149,7 @@ def _single_parts(model, steps: int, m: int, z: int, key):
     )
     tr = model.trained
     params = tr.seed_params(0)
-    config = dataclasses.replace(tr.sample_config, sampler=None, steps=steps)
+    config = model.config(None, steps)  # what jg.sample(steps=steps) samples with
     emb = jax.device_put(model.intent_emb)
 
     def ungated(current, intent, intensity, first, k):
@@ -176,7 +175,7 @@ def fixed_cost(lib, steps: int, reps: int) -> list[str]:
     model = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
     m, z = int(ho.intent[0]), int(ho.intensity[0])
     key = jax.random.key(0)
-    program = model.program(model.config(None, steps), 1, continuity=True)
+    program = model.program(model.config(None, steps), 1, "blend")
     args, ungated = _single_parts(model, steps, m, z, key)
     tr = model.trained
     raw = _compiled_single(ungated, *args)
@@ -235,7 +234,7 @@ def _rows(model: sampling.Model, label: str, configs, lib, reps: int, batch_reps
     key = jax.random.key(0)
     rows = []
     for sampler, s in configs:
-        config = dataclasses.replace(model.trained.sample_config, sampler=sampler, steps=s)
+        config = model.config(sampler, s)
         pub = latency.public_ms(model, ho.intent, ho.intensity, key, config, reps=reps)
         core = latency.core_ms(model.trained, cond, ho.intensity, key, config, reps=reps)
         rows.append((f"{label} {sampler} S={s}: single trajectory", pub, core, _goal("single", s)))

@@ -36,7 +36,7 @@ import jgrounding as jg
 from experiments.bench_sample import peak_gflops
 from jgrounding import semantics
 from jgrounding.io import write_atomic
-from jgrounding.semantics import embedded, encoder
+from jgrounding.semantics import calibration, embedded, encoder, features
 from jgrounding.semantics import head as semantic_head
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
@@ -129,7 +129,7 @@ def metrics(items: list[dict], preds: list) -> dict:
         "none_held": mean(~acted[~motion]),
         "exact": mean((z == z_true)[motion]),
         "within_one": mean((np.abs(z - z_true) <= 1)[motion]),
-        "ece": semantic_head.expected_calibration_error(conf, ok),
+        "ece": calibration.expected_calibration_error(conf, ok),
     }
 
 
@@ -207,14 +207,14 @@ def breakdown(texts: list[str]) -> dict:
     from jgrounding.semantics import structure
 
     head = semantic_head.load()
-    if head.config.inputs != "tuned":
+    if not head.config.features.one_program:
         return {}
     prep, program, buckets = [], [], []
     for text in texts:
         t0 = time.perf_counter()
         st = structure.analyse(text)
-        extras = embedded.tuned_extras(text, st)[None]
-        (_, ids, mask, pools), *_ = list(embedded.encoder_batches([text], [st]))
+        extras = features.tuned_extras(text, st)[None]
+        (_, ids, mask, pools), *_ = list(features.encoder_batches([text], [st]))
         t1 = time.perf_counter()
         out = head.run_tuned(ids, mask, pools, extras)  # the program jg.ground runs, the vote included
         np.asarray(out[0])
@@ -248,7 +248,7 @@ def matrix_precision(texts: list[str]) -> dict:
     kinds = {"float16": half, "float32": full}
     times = {k: [] for k in kinds}
     for text in texts:
-        (_, ids, mask, pools), *_ = list(embedded.encoder_batches([text], [structure.analyse(text)]))
+        (_, ids, mask, pools), *_ = list(features.encoder_batches([text], [structure.analyse(text)]))
         for kind, params in kinds.items():
             encoder.pool_ids(params, ids, mask, pools).block_until_ready()  # compiled (or cached) outside the timing
         for kind, params in kinds.items():

@@ -69,18 +69,13 @@ def commands(steps: int, few_step_steps: int | None = None) -> dict[str, list[st
     }
 
 
-def _set_guidance(path: Path, w: float) -> None:
+def record(path: Path, guidance: float, noise_scales: dict) -> None:
+    """Record the chosen sampling defaults in a checkpoint's meta.json: its guidance ``w`` and its initial-noise
+    scale per served step count (``{S: T}``), what ``jg.sample(steps=S)`` then samples with. The only write:
+    candidates are scored by passing a :class:`~jgrounding.config.SampleConfig` (:func:`evaluate`)."""
     meta_path = path / "meta.json"
     meta = json.loads(meta_path.read_text())
-    meta.setdefault("sample", {})["guidance"] = float(w)
-    write_atomic(meta_path, json.dumps(meta, indent=1) + "\n")
-
-
-def _set_noise_scale(path: Path, scale) -> None:
-    """Record ``scale`` (one number, or ``{S: number}``) as the checkpoint's initial-noise scale."""
-    meta_path = path / "meta.json"
-    meta = json.loads(meta_path.read_text())
-    meta.setdefault("sample", {})["noise_scale"] = scale
+    meta.setdefault("sample", {}).update(guidance=float(guidance), noise_scale=noise_scales)
     write_atomic(meta_path, json.dumps(meta, indent=1) + "\n")
 
 
@@ -94,22 +89,21 @@ def halves(intent, intensity) -> dict[str, np.ndarray]:
 
 def evaluate(path: Path, w: float, steps: int, k: int = 30, noise_scale: float = 1.0) -> dict[str, dict] | None:
     """Distribution metrics of ``path`` sampled with guidance ``w``, initial-noise scale ``noise_scale`` and
-    ``steps`` through jg.sample, on each half of the tuples (:func:`halves`): ``{half: metrics}``; None when
-    the safety gate refuses a sample (non-finite: e.g. a 2-rectified flow at T = 1.3 over 50 steps)."""
+    ``steps`` through jg.sample (the settings passed as a config; the checkpoint is not touched), on each half
+    of the tuples (:func:`halves`): ``{half: metrics}``; None when the safety gate refuses a sample
+    (non-finite: e.g. a 2-rectified flow at T = 1.3 over 50 steps)."""
     import jax
 
     import jgrounding as jg
+    from jgrounding.config import SampleConfig
     from jgrounding.evaluation import distribution
-    from jgrounding.policy import sampling
 
-    _set_guidance(path, w)
-    _set_noise_scale(path, noise_scale)
-    sampling.load.cache_clear()  # re-read the recorded guidance and noise scale
+    config = SampleConfig(steps=steps, guidance=w, noise_scale=noise_scale)
     lib = jg.load_library()
     ho, ev = lib.heldout, lib.evaluation
     try:
         u = jg.sample(
-            jax.random.key(7), list(ho.intent), list(ho.intensity), num_samples=k, steps=steps, checkpoint=path
+            jax.random.key(7), list(ho.intent), list(ho.intensity), num_samples=k, checkpoint=path, config=config
         )
     except jg.safety.UnsafeActuationError as err:
         print(f"{path.name} w={w} T={noise_scale} S={steps}: refused by the gate ({err}); not a candidate")
@@ -164,20 +158,20 @@ FRESH = ("prec_r", "mode_cov", "mm_ratio", "intensity_ret")
 
 
 def fresh_keys(served: dict, keys=FRESH_KEYS, k: int = 30) -> dict[str, dict]:
-    """The served ``{S: (checkpoint, ...)}`` settings (as recorded in the checkpoints) on the report half with
-    other keys: ``{S: {metric: [value per key]}}``, so that the report is not one draw of the noise."""
+    """The served ``{S: (checkpoint, w, T, ...)}`` settings on the report half with other keys:
+    ``{S: {metric: [value per key]}}``, so that the report is not one draw of the noise."""
     import jax
 
     import jgrounding as jg
+    from jgrounding.config import SampleConfig
     from jgrounding.evaluation import distribution
-    from jgrounding.policy import sampling
 
-    sampling.load.cache_clear()
     lib = jg.load_library()
     ho, ev = lib.heldout, lib.evaluation
     i = halves(ho.intent, ho.intensity)["report"]
     out = {}
-    for s, (name, *_) in sorted(served.items()):
+    for s, (name, w, t, *_) in sorted(served.items()):
+        config = SampleConfig(steps=s, guidance=w, noise_scale=t)
         per = []
         for seed in keys:
             u = jg.sample(
@@ -185,8 +179,8 @@ def fresh_keys(served: dict, keys=FRESH_KEYS, k: int = 30) -> dict[str, dict]:
                 list(ho.intent[i]),
                 list(ho.intensity[i]),
                 num_samples=k,
-                steps=s,
                 checkpoint=CKPT / name,
+                config=config,
             )
             per.append(distribution.score(u, ho.intent[i], ho.intensity[i], ev, r=_radius(), with_frechet=False))
         out[str(s)] = {m: [round(p.mean(m), 4) for p in per] for m in FRESH}
@@ -230,21 +224,15 @@ def _metrics(m: dict) -> dict:
 
 
 def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE, noise_scales=NOISE_SCALES) -> dict:
-    """Score every candidate (on scratch copies of the checkpoints, so that a concurrent ``jg.sample`` never
-    sees a setting under trial), assign the winners and record their settings in the shipped checkpoints."""
-    import shutil
-    import tempfile
-
+    """Score every candidate (its settings passed to ``jg.sample`` as a config: no checkpoint is written until
+    the choice), assign the winners and record their settings in the shipped checkpoints (:func:`record`)."""
     table, halves_of = [], {}
     names = [n for n in CANDIDATES if (CKPT / n / "meta.json").exists()]
-    scratch = Path(tempfile.mkdtemp(prefix="ship-"))
-    for name in names:
-        shutil.copytree(CKPT / name, scratch / name)
     for s in step_counts:
         for name in names:
             for w in guidance:
                 for t in noise_scales:
-                    by_half = evaluate(scratch / name, w, s, noise_scale=t)
+                    by_half = evaluate(CKPT / name, w, s, noise_scale=t)
                     if by_half is None:
                         continue
                     m = by_half["choice"]
@@ -257,13 +245,10 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE, noise_scales=NOISE_SCALES
                         + f" -> score {score:.3f}",
                         flush=True,
                     )
-    shutil.rmtree(scratch)
     served, fixed = assign(table, step_counts)
     for name, w in fixed.items():
-        _set_guidance(CKPT / name, w)
         # every S it serves (a step count between two listed ones takes the next listed one's, as the routing)
-        scales = {str(s): t for s, (n, _, t, _) in sorted(served.items()) if n == name}
-        _set_noise_scale(CKPT / name, scales)
+        record(CKPT / name, w, {str(s): t for s, (n, _, t, _) in sorted(served.items()) if n == name})
     manifest = {
         "default": DEFAULT,
         "few_step": [],
@@ -406,7 +391,7 @@ def main(argv=None) -> int:
         if "references" not in manifest:
             manifest["references"] = {"training_replay": {h: _metrics(m) for h, m in training_replay().items()}}
         if "fresh_keys" not in manifest:
-            served = {int(s): (m["checkpoint"],) for s, m in manifest["scores"].items()}
+            served = {int(s): (m["checkpoint"], m["guidance"], m["noise_scale"]) for s, m in manifest["scores"].items()}
             manifest["fresh_keys"] = {"keys": list(FRESH_KEYS), "report_half": fresh_keys(served)}
         write_atomic(CKPT / "shipped.json", json.dumps(manifest, indent=1) + "\n")
         write_atomic(RESULTS, report(manifest))

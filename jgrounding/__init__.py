@@ -28,6 +28,7 @@ _LAZY = {
     "ground": ("jgrounding.semantics", "ground"),
     "ground_many": ("jgrounding.semantics", "ground_many"),
     "sample": ("jgrounding.policy.sampling", "sample"),
+    "SampleConfig": ("jgrounding.config", "SampleConfig"),  # jg.sample(..., config=jg.SampleConfig(steps=8))
     "load_library": ("jgrounding.library", "load_library"),
     "sim": ("jgrounding.sim", None),  # the trunk simulation, named like its package (jgrounding.sim)
     "trunk": ("jgrounding.sim", None),  # an older alias of jg.sim, kept so existing code keeps working

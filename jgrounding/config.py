@@ -33,6 +33,7 @@ RF_SAMPLERS = ("euler", "midpoint", "rk4")  # ODE integrators of a rectified flo
 DDPM_SAMPLERS = ("ancestral", "ddim")
 SAMPLERS = (*RF_SAMPLERS, *DDPM_SAMPLERS, "none")  # none: the deterministic regressors
 TIME_SAMPLERS = ("uniform", "logit_normal", "beta")  # generators.flows.TIME_SAMPLERS implements these
+MAX_SAMPLE_STEPS = 1000  # most sampler steps S a sampling call takes (Trained.resolve)
 
 
 def _integer(owner: str, name: str, value, low: int) -> None:
@@ -116,12 +117,17 @@ class SampleConfig:
     ancestral for a DDPM); ``guidance`` w: v = v_c + w (v_c - v_null), 0 = off. ``sampler`` None: the
     generator's default; a name it does not have is refused when sampling (never silently replaced).
     ``noise_scale``: temperature of the initial noise, eps ~ N(0, noise_scale^2 I) (1 = the trained prior;
-    above 1 spreads the samples of an under-dispersed few-step model, issue #25)."""
+    above 1 spreads the samples of an under-dispersed few-step model, issue #25).
 
-    sampler: str | None = None
-    steps: int = 50
-    guidance: float = 0.0
-    noise_scale: float = 1.0
+    Frozen and hashable: ``jg.sample(..., config=SampleConfig(...))`` passes one, and the public sampler
+    compiles one program per (config, batch bucket). A model fills in and checks what depends on its
+    generator (the default sampler; steps 1..:data:`MAX_SAMPLE_STEPS`) in one place,
+    :meth:`jgrounding.generators.trained.Trained.resolve`."""
+
+    sampler: str | None = None  # None: the generator's default (euler for RF, ancestral for DDPM)
+    steps: int = 50  # S sampler steps (one forward pass for a regressor, whatever S)
+    guidance: float = 0.0  # classifier-free guidance w (needs a model trained with condition dropout)
+    noise_scale: float = 1.0  # temperature T of the initial noise
 
     def __post_init__(self):
         if self.sampler is not None and self.sampler not in SAMPLERS:

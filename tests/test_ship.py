@@ -88,3 +88,19 @@ def test_the_report_checks_each_s_against_the_largest_and_shows_t_1():
     assert "(reference)" in rows["50"][0]
     assert rows["4"][0].endswith("| 0.980 | 0.700 |")  # the same checkpoint and w at T = 1
     assert rows["2"][1].endswith("| +0.020 (+0.010, +0.030) | 1 of 2 |")  # other keys: the gap key by key
+
+
+def test_a_candidate_is_scored_through_a_config_and_no_checkpoint_is_written(monkeypatch, tmp_path):
+    import jgrounding as jg
+
+    seen = {}
+
+    def fake_sample(key, intent, intensity, num_samples=1, **kwargs):
+        seen.update(kwargs)
+        raise jg.safety.UnsafeActuationError("stop here: only the settings are checked")
+
+    monkeypatch.setattr(jg, "sample", fake_sample)
+    monkeypatch.setattr(ship, "write_atomic", lambda *a: seen.setdefault("written", a))
+    assert ship.evaluate(tmp_path / "ck", 0.5, 4, noise_scale=1.2) is None
+    assert seen["config"] == jg.SampleConfig(steps=4, guidance=0.5, noise_scale=1.2)
+    assert "steps" not in seen and "written" not in seen  # the settings travel as a value, not via meta.json

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding.semantics import embedded
+from jgrounding.semantics import calibration, features
 from jgrounding.semantics import head as sh
 from tools import train_semantics as ts
 
@@ -47,7 +47,8 @@ HOLDOUTS = {
 # Rows the vote's table holds beyond the training corpora (the head is not trained on them, so
 # tools.train_semantics still rebuilds the shipped head): 1,024 situations written from the blind brief.
 VOTE_ROWS = ROOT / "assets" / "semantics_vote"
-POOL = sh.EMBED_DIM
+POOL = features.EMBED_DIM  # one pooled vector
+POOLED = features.POOLED_FEATURES  # the extras follow the tuned encoder's poolings in the head's inputs
 # The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
 # corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
 # this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
@@ -66,7 +67,7 @@ def head_features(head, texts: list[str], cache_dir=ts.CACHE) -> np.ndarray:
         with np.load(path) as f:
             return f["x"]
     print(f"  encoding {len(texts)} texts with the shipped head's encoder", flush=True)
-    x = embedded.head_inputs(head, texts)
+    x = features.head_inputs(head, texts)
     buf = io.BytesIO()
     np.savez(buf, x=x)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -86,7 +87,7 @@ def representation(kind: str, params, x) -> np.ndarray:
     v = {
         "sentence": lambda: x[:, :POOL],
         "chosen": lambda: x[:, POOL : 2 * POOL],
-        "pools": lambda: x[:, : 4 * POOL],
+        "pools": lambda: x[:, :POOLED],
         "hidden": lambda: hidden(params, x),
     }[kind]()
     return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
@@ -111,9 +112,9 @@ def no_motion_words(x) -> np.ndarray:
     from jgrounding.semantics.structure import FLAGS
     from jgrounding.vocabulary import NUM_INTENTS
 
-    extras = x[:, 4 * POOL :]
+    extras = x[:, POOLED:]
     lex = extras[:, :NUM_INTENTS]
-    flags = extras[:, 2 * NUM_INTENTS + sh.NUM_DEGREE :]
+    flags = extras[:, features.TUNED_FLAGS_START :]
     cues = [FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]
     return (lex.sum(1) == 0) & (flags[:, cues].sum(1) == 0)
 
@@ -125,7 +126,7 @@ def gate_vector(num_extras: int) -> np.ndarray:
 
     g = np.zeros(num_extras, np.float32)
     g[:NUM_INTENTS] = 1.0
-    g[[2 * NUM_INTENTS + sh.NUM_DEGREE + FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]] = 1.0
+    g[[features.TUNED_FLAGS_START + FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]] = 1.0
     return g
 
 
@@ -142,7 +143,7 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
     dev_intent, _ = ts.labels(dev)
     temperature = 1.0
     if refit_temperature:
-        temperature = sh.fit_temperature(lambda t: sharpen(pm, t), dev_intent)
+        temperature = calibration.fit_temperature(lambda t: sharpen(pm, t), dev_intent)
         pm, pm_plain = sharpen(pm, temperature), sharpen(pm_plain, temperature)
     threshold = ts.calibrate_threshold(pm, pz, dev)
     r = ts.selective(pm, pz, dev, threshold)
@@ -326,7 +327,7 @@ def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: boo
     if CHOSEN["representation"] not in sh.KNN_POOLS:
         raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
     pool = sh.KNN_POOLS.index(CHOSEN["representation"])
-    gate = gate_vector(x["dev"].shape[1] - 4 * POOL)
+    gate = gate_vector(x["dev"].shape[1] - POOLED)
     if CHOSEN["gate"] == "always":
         gate = np.zeros_like(gate)
     refit = CHOSEN.get("refit_temperature", False)
@@ -341,7 +342,7 @@ def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: boo
             if not len(xs):
                 return pm
             q = xs[:, pool * POOL : (pool + 1) * POOL]
-            return np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, xs[:, 4 * POOL :], CHOSEN["k"]), np.float64)
+            return np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, xs[:, POOLED:], CHOSEN["k"]), np.float64)
 
         return table, labels, scored({n: vote(x[n], p[0]) for n, p in p_head.items()}, refit)
 

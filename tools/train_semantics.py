@@ -32,7 +32,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding.semantics import embedded
+from jgrounding.semantics import calibration, cue_reducer, features
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
@@ -118,7 +118,7 @@ def _code_digest() -> str:
 
 
 def cached_structure_features(texts: list[str], cache_dir=CACHE) -> np.ndarray:
-    """:func:`embedded.structure_features` of ``texts``; the encoder's part goes through a cache keyed by the
+    """:func:`jgrounding.semantics.features.structure_features` of ``texts``; the encoder's part goes through a cache keyed by the
     encoder and span code and the text (cue features and flags are recomputed: they are cheap)."""
     from jgrounding.io import write_atomic
     from jgrounding.semantics import structure
@@ -134,22 +134,23 @@ def cached_structure_features(texts: list[str], cache_dir=CACHE) -> np.ndarray:
     if missing:
         print(f"  encoding {len(missing)} texts (cache: {len(known)})", flush=True)
         idx = list(missing.values())
-        x = embedded.pooled_embeddings([texts[i] for i in idx], [structs[i] for i in idx])
+        x = features.pooled_embeddings([texts[i] for i in idx], [structs[i] for i in idx])
         known.update(zip(missing, x))
         buf = io.BytesIO()
         keys = sorted(known)
         np.savez(buf, keys=np.array(keys), x=np.stack([known[k] for k in keys]))
         path.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(path, buf.getvalue())
-    return embedded.structure_features_from(texts, structs, np.stack([known[k] for k in key]))
+    return features.structure_features_from(texts, structs, np.stack([known[k] for k in key]))
 
 
 def inputs(kind: str, xs: np.ndarray, texts: list[str]) -> np.ndarray:
-    """The head's input features of one option from the structure features (no second encoder pass)."""
+    """The head's input features of one option (:data:`jgrounding.semantics.features.INPUTS`: ``eq3`` or
+    ``structure``) from the structure features (no second encoder pass: the sentence pooling is the embedding)."""
     if kind == "structure":
         return xs
-    emb = xs[:, : sh.EMBED_DIM]
-    return np.concatenate([emb, np.stack([embedded.cue_features(r, t) for r, t in zip(emb, texts)])], 1)
+    emb = xs[:, : features.EMBED_DIM]
+    return np.concatenate([emb, np.stack([cue_reducer.cue_features(r, t) for r, t in zip(emb, texts)])], 1)
 
 
 def selective(p_m: np.ndarray, p_z: np.ndarray, rows, threshold: float) -> dict:
@@ -170,7 +171,7 @@ def selective(p_m: np.ndarray, p_z: np.ndarray, rows, threshold: float) -> dict:
         "acted_accuracy": float(ok[act & motion].mean()) if (act & motion).any() else float("nan"),
         "confident_wrong": float(np.sum(act & ~ok) / n),
         "none_held": float(np.mean(~act[~motion])) if (~motion).any() else float("nan"),
-        "ece": sh.expected_calibration_error(conf, ok),
+        "ece": calibration.expected_calibration_error(conf, ok),
     }
 
 
@@ -218,11 +219,10 @@ def fit(x, rows, row_weight, inputs, hidden, steps=400, z_hidden=0, dropout=0.1,
     cfg = sh.HeadConfig(
         hidden=hidden,
         z_hidden=z_hidden,
-        use_eq3=True,
         steps=steps,
         dropout=dropout,
         seed=seed,
-        inputs="structure" if inputs == "structure" else "",
+        inputs=inputs,
         num_reasons=len(reasons) if reasons else 0,
     )
     intent, intensity = labels(rows)
@@ -250,7 +250,7 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
     )
     texts = [r["text"] for r in rows]
     structs = [structure.analyse(t) for t in texts]
-    extras = np.stack([embedded.tuned_extras(t, st) for t, st in zip(texts, structs)])
+    extras = np.stack([features.tuned_extras(t, st) for t, st in zip(texts, structs)])
     base = encoder.load_params()
     low = dict(base, layers=jax.tree.map(lambda a: a[:-tuned_layers], base["layers"]))
     top = jax.tree.map(lambda a: a[-tuned_layers:], base["layers"])
@@ -280,13 +280,13 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
         length = encoder.bucket_length(max(len(states[i]) for i in idx))
         h = np.zeros((len(idx), length, encoder.HIDDEN), np.float32)
         m = np.zeros((len(idx), length), np.int32)
-        pw = np.zeros((len(idx), embedded.NUM_POOLS, length), np.float32)
+        pw = np.zeros((len(idx), features.NUM_POOLS, length), np.float32)
         for r, i in enumerate(idx):
             n = len(states[i])
             h[r, :n], m[r, :n], pw[r, :, :n] = states[i], 1, pools[i]
         return h, m, pw
 
-    def features(top, h, m, pw, extra):
+    def top_features(top, h, m, pw, extra):
         bias = (1.0 - m[:, None, None, :].astype(jnp.float32)) * -1e9
         x = jax.lax.scan(lambda hh, p: (encoder.block(hh, bias, p), None), h, top)[0]
         pooled = jnp.einsum("bpl,bld->bpd", pw, x) / jnp.maximum(pw.sum(-1, keepdims=True), 1e-9)
@@ -298,7 +298,7 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
     w = _class_balanced(rows, row_weight, reasons).astype(np.float32)
 
     def loss(params, key, h, m, pw, extra, it, iz, ww, wy):
-        x = features(params["top"], h, m, pw, extra)
+        x = top_features(params["top"], h, m, pw, extra)
         return sh.loss(params["head"], key, x, it, iz, ww, cfg.dropout, wy, cfg.reason_weight)
 
     opt = optax.multi_transform(
@@ -387,16 +387,16 @@ def main(argv=None) -> int:
             params, deltas, cfg = finetune(rows, row_weight, reasons, **{k: v for k, v in opt.items() if k != "inputs"})
             # Dev features through the shipped path: the float16 deltas on the frozen encoder, as ground() reads them.
             tuned = sh.Head(params, cfg, 1.0, 0.5, {}, sh.with_top(deltas, cfg))
-            xd = embedded.head_inputs(tuned, [r["text"] for r in dev])
-            xp = embedded.head_inputs(tuned, [r["text"] for r in plain])
+            xd = features.head_inputs(tuned, [r["text"] for r in dev])
+            xp = features.head_inputs(tuned, [r["text"] for r in plain])
         else:
             xd = inputs(opt["inputs"], xs_dev, [r["text"] for r in dev])
             xp = inputs(opt["inputs"], xs_plain, [r["text"] for r in plain])
             params, cfg = fit(inputs(opt["inputs"], xs, texts), rows, row_weight, reasons=reasons, **opt)
         trained_cuts = np.asarray(sh.thresholds(params), np.float64)
         cuts, shifts = fit_cut_points(params, xd, dev)
-        params = sh.with_cut_points(params, cuts)
-        temperature = sh.fit_temperature(lambda t: _probs(params, xd, t)[0], dev_intent)
+        params = calibration.with_cut_points(params, cuts)
+        temperature = calibration.fit_temperature(lambda t: _probs(params, xd, t)[0], dev_intent)
         pm, pz = _probs(params, xd, temperature)
         threshold = calibrate_threshold(pm, pz, dev)
         r = selective(pm, pz, dev, threshold)

@@ -12,9 +12,10 @@ Grounds the text to an (intent, intensity) tuple, samples K trajectories, and wr
 holds now (default ``rest``): the trajectories blend in from it within the slew bound. ``--screen``
 simulates the candidates on the trunk and keeps only feasible ones (stable, contact force and tip speed
 near the user within bounds), reporting how many were rejected. ``--jsonl`` prints one JSON object per
-event for scripts; ``--quiet`` prints only the output folder. A grounding below the calibrated confidence
-threshold does not drive the trunk: the command stream holds still at ``--current``
-(:data:`jgrounding.semantics.HOLD_STILL`) and the screen says so; ``--force`` drives the grounded tuple anyway.
+event for scripts; ``--quiet`` prints only the output folder. The decision is the one every front end makes
+(:class:`jgrounding.policy.respond.Responder`): with ``--checkpoint``, grounding chooses among the checkpoint's
+tuples; a grounding below the calibrated confidence threshold does not drive the trunk: the command stream holds
+still at ``--current`` and the screen says why ("holding still: ..."); ``--force`` drives the grounded tuple anyway.
 """
 
 from __future__ import annotations

@@ -3,8 +3,11 @@
 Like openpi's ``BaseModel`` (``compute_loss`` / ``sample_actions``): the method registry
 (:mod:`jgrounding.generators.methods`) pairs a generator with a condition and an actuation representation, and
 training, sampling and checkpoints call only these three functions, never a generator's name.
-Implementations: ``methods.Regressor`` (the deterministic CNNs), ``flows.RectifiedFlow``,
-``flows.DDPM``, and the one-step ``few_step.MeanFlow`` and ``few_step.Shortcut``. Shared types only; imports nothing from the package but the config.
+Implementations: ``regressor.Regressor`` (the deterministic CNNs), and on the one flow base
+``flows.ConditionalFlow``: ``flows.RectifiedFlow``, ``flows.DDPM`` and the one-step ``few_step.MeanFlow`` and
+``few_step.Shortcut``. What a generator can do is declared once, as attributes of the protocol; the registry,
+training, sampling and the server read them, never a generator's class. Shared types only; imports nothing
+from the package but the config.
 """
 
 from __future__ import annotations
@@ -28,13 +31,29 @@ class Representation(Protocol):
 
 
 class Generator(Protocol):
-    """A generator of Table II. ``sequence``: its network reads and writes targets as ``(B, L, N_u)``
-    sequences (the CNNs) instead of flat ``(B, N_u * L)`` vectors (the MLPs); ``iterative``: sampling
-    takes steps S; ``samplers``: the sampler names it accepts, its default first."""
+    """A generator of Table II and what it can do, each ability declared once here:
+
+    - ``sequence``: its network reads and writes targets as ``(B, L, N_u)`` sequences (the CNNs) instead of
+      flat ``(B, N_u * L)`` vectors (the MLPs);
+    - ``iterative``: sampling takes steps S (``SampleConfig.steps``; otherwise it is one forward pass);
+    - ``samplers``: the sampler names it accepts, its default first;
+    - ``uses_context``: the condition enters its network as a first-layer context row, so ``sample`` takes
+      ``context=`` rows computed beforehand (:meth:`jgrounding.generators.trained.Trained.contexts`);
+    - ``inpaints``: ``sample`` takes ``known=`` coordinates and keeps them (start-conditioned sampling);
+    - ``null_condition``: it can train a null condition (``TrainConfig.condition_dropout``), so
+      classifier-free guidance (``SampleConfig.guidance``) applies;
+    - ``flow_times``: its loss draws flow times (``TrainConfig.time_sampler`` applies);
+    - ``reflows``: its loss trains on coupled (noise, data) pairs and its sampler is a deterministic ODE, so it
+      can be reflowed (:func:`jgrounding.training.trainer.reflow`)."""
 
     sequence: bool
     iterative: bool
     samplers: tuple[str, ...]
+    uses_context: bool
+    inpaints: bool
+    null_condition: bool
+    flow_times: bool
+    reflows: bool
 
     def init(
         self,
@@ -52,10 +71,21 @@ class Generator(Protocol):
         ``"noise"`` (B, D) for coupled reflow pairs)."""
 
     def sample(
-        self, model: nnx.Module, cond: jax.Array, intensity: jax.Array, key: jax.Array, dim: int, config: SampleConfig
+        self,
+        model: nnx.Module,
+        cond: jax.Array | None,
+        intensity: jax.Array,
+        key: jax.Array,
+        dim: int,
+        config: SampleConfig,
+        *,
+        known: tuple[jax.Array, jax.Array] | None = None,
+        context: jax.Array | None = None,
     ) -> jax.Array:
         """Normalized targets ``(B, D)`` or ``(B, L, N_u)`` for conditions ``cond (B, E)``, ``intensity (B,)``;
-        ``dim`` D = N_u * L is the flat target size. A generator whose network takes the condition as a
-        first-layer context (``uses_context = True``: the flows and the few-step generators) also accepts
-        ``context=`` rows ``(B, H)`` computed beforehand (:meth:`Trained.contexts`), and the flows ``known=``
-        coordinates to inpaint."""
+        ``dim`` D = N_u * L is the flat target size; ``config`` already resolved for this generator
+        (:meth:`jgrounding.generators.trained.Trained.resolve`: nothing is checked here).
+
+        ``known``: ``(mask (D,) or (B, D) bool, values (B, D))`` coordinates to keep (only where ``inpaints``).
+        ``context``: the conditions' first-layer rows ``(B, H)`` (only where ``uses_context``); given, ``cond``
+        is not read."""

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jgrounding.config import SampleConfig, TrainConfig
-from jgrounding.generators.flows import INPAINT, condition_keep, guided, mlp_init, sample_flow_time
+from jgrounding.generators.flows import INPAINT, ConditionalFlow, sample_flow_time
 from jgrounding.generators.networks import TwoTimeMLP
 
 MEANFLOW_JUMP_SHARE = 0.25  # share of examples with s != t (the paper's best; the rest is flow matching)
@@ -120,40 +120,24 @@ def jump_sample(network, eps, times, seconds, embed_time=None, known=None, inpai
     return out if known is None else jnp.where(known[0], known[1], out)
 
 
-class _Jump:
-    """Shared by MeanFlow and the shortcut model: a :class:`TwoTimeMLP`, condition dropout in training
-    (null condition, for classifier-free guidance) and the jump sampler. Subclasses give ``loss`` and
-    ``second`` (the network's second input for each of S jumps)."""
+class _Jump(ConditionalFlow):
+    """MeanFlow and the shortcut model on the flow base: a :class:`TwoTimeMLP` and the jump sampler.
+    Subclasses give ``loss`` and ``second`` (the network's second input for each of S jumps)."""
 
-    sequence = False
-    iterative = True
     samplers = ("euler",)  # one jump per step: x + dt * net(x, t, second)
+    network = TwoTimeMLP
 
-    init = staticmethod(lambda *args: mlp_init(TwoTimeMLP, *args))
-
-    @staticmethod
-    def _network(model, batch: dict, key, config: TrainConfig):
-        """(key left for the loss, ``net(x, t, s)``) with condition dropout as :class:`flows._Flow` does."""
-        key, keep = condition_keep(batch, key, config)
-        return key, lambda x, t, s: model(x, t, s, batch["cond"], batch["intensity"], keep)
-
-    uses_context = True  # as flows._Flow: the condition's first-layer rows can be precomputed per tuple
-
-    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None, context=None):
-        """S jumps from ``eps = N(key) (B, D)``; guidance w: net = net_c + w (net_c - net_null). ``context``:
-        precomputed ``model.context(cond, intensity)`` rows, as :meth:`flows._Flow.sample` takes them."""
-        context = model.context(cond, intensity) if context is None else context
-        eps = config.noise_scale * jax.random.normal(key, (context.shape[0], dim))  # temperature of the noise
-        net = guided(model, context, config.guidance)
+    def integrate(self, net, eps, key, config: SampleConfig, embed_time, known=None):
+        del key  # the jumps are deterministic given eps
         times = np.linspace(0.0, 1.0, config.steps + 1)
-        return jump_sample(net, eps, times, self.second(config.steps), model.time_context, known)
+        return jump_sample(net, eps, times, self.second(config.steps), embed_time, known)
 
 
 class MeanFlow(_Jump):
     """Average-velocity field u(z, t, s) with the MeanFlow identity as target (second input: s - t)."""
 
     def loss(self, model, batch, key, config: TrainConfig):
-        key, net = self._network(model, batch, key, config)
+        key, net = self.conditioned(model, batch, key, config)
         return meanflow_loss(lambda x, t, s: net(x, t, s - t), batch["target"], key, time_sampler=config.time_sampler)
 
     @staticmethod
@@ -165,7 +149,7 @@ class Shortcut(_Jump):
     """Shortcut model s(z, t, d): d = 1 / S for S <= 64 jumps, d = 0 (the flow-matching field) beyond."""
 
     def loss(self, model, batch, key, config: TrainConfig):
-        key, net = self._network(model, batch, key, config)
+        key, net = self.conditioned(model, batch, key, config)
         return shortcut_loss(net, batch["target"], key, time_sampler=config.time_sampler)
 
     @staticmethod

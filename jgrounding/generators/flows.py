@@ -6,6 +6,8 @@ and the velocity target is c - eps. ``velocity(x, t)`` below is any function of 
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -75,14 +77,6 @@ def _time_features(grid: np.ndarray, embed_time):
 
 
 INPAINT = ("final", "path")
-
-
-def mlp_init(
-    network, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig
-) -> nnx.Module:
-    """``Generator.init`` of a generator whose network is an MLP over the flat target (N_u x L values)."""
-    dim = num_tendons * representation.length(num_controls)
-    return network(dim, use_intensity, config, rngs=nnx.Rngs(key))
 
 
 def guided(model, ctx, w: float):
@@ -233,64 +227,79 @@ def condition_keep(batch: dict, key, config: TrainConfig):
     return key, keep.astype(jnp.float32)
 
 
-class _Flow:
-    """Shared by the flow and diffusion generators: the velocity / noise MLP, condition dropout in
-    training and classifier-free guidance in sampling. Subclasses give ``loss`` and ``_integrate``."""
+class ConditionalFlow:
+    """The one base of the flow, diffusion and few-step generators: a conditional MLP over the flat target
+    (``network``: :class:`VelocityMLP`, or the few-step :class:`~jgrounding.generators.networks.TwoTimeMLP`),
+    condition dropout in training (the null condition), and in sampling a precomputable condition context,
+    the noise temperature and classifier-free guidance. Subclasses give ``samplers``, ``loss`` and
+    ``integrate`` (the sampler's loop from the initial noise)."""
 
     sequence = False
     iterative = True  # sampling steps S apply
+    uses_context = True  # the condition enters as a first-layer context row (precomputable per tuple)
+    inpaints = True
+    null_condition = True
+    flow_times = True
+    reflows = False
+    network = VelocityMLP
 
-    init = staticmethod(lambda *args: mlp_init(VelocityMLP, *args))
+    def init(self, key, representation, num_controls: int, num_tendons: int, use_intensity: bool, config: ModelConfig):
+        """``Generator.init``: the MLP over the flat target (N_u x L values)."""
+        dim = num_tendons * representation.length(num_controls)
+        return self.network(dim, use_intensity, config, rngs=nnx.Rngs(key))
 
     @staticmethod
-    def _network(model, batch: dict, key, config: TrainConfig):
-        """(key left for the loss, ``net(x, t)``); with condition dropout the null condition is trained too."""
+    def conditioned(model, batch: dict, key, config: TrainConfig):
+        """(key left for the loss, ``net(x, *times)``); with condition dropout the null condition is trained too."""
         key, keep = condition_keep(batch, key, config)
-        return key, lambda x, t: model(x, t, batch["cond"], batch["intensity"], keep)
+        return key, lambda x, *times: model(x, *times, batch["cond"], batch["intensity"], keep)
 
-    uses_context = True  # the condition enters as a first-layer context row (precomputable per tuple)
-
-    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, known=None, context=None):
-        """Integrate from noise ``eps = N(key) (B, D)``; guidance w: v = v_c + w (v_c - v_null), the
-        conditional and null rows through the network as one batch. ``known``: coordinates fixed by
-        inpainting (:func:`rf_sample`; rectified flow only). ``context``: the condition's first-layer rows
-        ``(B, H)`` when already computed (``model.context(cond, intensity)``; ``cond`` is then unused)."""
+    def sample(self, model, cond, intensity, key, dim: int, config: SampleConfig, *, known=None, context=None):
+        """Integrate from noise ``eps = noise_scale N(key) (B, D)``; guidance w: v = v_c + w (v_c - v_null), the
+        conditional and null rows through the network as one batch. ``known``: coordinates fixed by inpainting.
+        ``context``: the condition's first-layer rows ``(B, H)`` when already computed
+        (``model.context(cond, intensity)``; ``cond`` is then unused). ``config.sampler`` None: the default."""
+        if config.sampler is None:  # SampleConfig's "the generator's default" (Trained.resolve fills it in)
+            config = dataclasses.replace(config, sampler=self.samplers[0])
         # What does not change across flow steps is computed once, before the sampler's loop: the
         # condition's share of the first layer, and the time embedding's share for every step.
         context = model.context(cond, intensity) if context is None else context
         eps = config.noise_scale * jax.random.normal(key, (context.shape[0], dim))  # temperature of the noise
         net = guided(model, context, config.guidance)
-        if known is not None:
-            return self._integrate(net, eps, key, config, model.time_context, known=known)
-        return self._integrate(net, eps, key, config, model.time_context)
+        return self.integrate(net, eps, key, config, model.time_context, known)
 
 
-class RectifiedFlow(_Flow):
+class RectifiedFlow(ConditionalFlow):
     """Sec. III-C: the paper's generator (Eqs. rf_loss, rf_inference)."""
 
     samplers = RF_SAMPLERS
+    reflows = True  # its loss takes coupled noise and its sampler is an ODE (2-rectified flow)
 
     def loss(self, model, batch, key, config: TrainConfig):
-        key, net = self._network(model, batch, key, config)
+        key, net = self.conditioned(model, batch, key, config)
         return rf_loss(net, batch["target"], key, time_sampler=config.time_sampler, noise=batch.get("noise"))
 
     @staticmethod
-    def _integrate(net, eps, key, config: SampleConfig, embed_time, known=None):
+    def integrate(net, eps, key, config: SampleConfig, embed_time, known=None):
         del key  # the ODE is deterministic given eps
         return rf_sample(net, eps, steps=config.steps, sampler=config.sampler, embed_time=embed_time, known=known)
 
 
-class DDPM(_Flow):
-    """The diffusion baseline of Table II (epsilon prediction, cosine schedule)."""
+class DDPM(ConditionalFlow):
+    """The diffusion baseline of Table II (epsilon prediction, cosine schedule): no inpainting, and its
+    discrete diffusion steps take no flow-time distribution."""
 
     samplers = DDPM_SAMPLERS
+    inpaints = False
+    flow_times = False
 
     def loss(self, model, batch, key, config: TrainConfig):
-        key, net = self._network(model, batch, key, config)
+        key, net = self.conditioned(model, batch, key, config)
         return ddpm_loss(net, batch["target"], key)
 
     @staticmethod
-    def _integrate(net, eps, key, config: SampleConfig, embed_time):
+    def integrate(net, eps, key, config: SampleConfig, embed_time, known=None):
+        del known  # never given: inpaints is False (methods.check_start_conditioning, at the boundary)
         return ddpm_sample(
             net,
             eps,

@@ -19,8 +19,11 @@ import numpy as np
 from flax import nnx
 
 from jgrounding import safety
-from jgrounding.config import NUM_CONTROLS, NUM_TENDONS, ModelConfig, SampleConfig
+from jgrounding.config import MAX_SAMPLE_STEPS, NUM_CONTROLS, NUM_TENDONS, ModelConfig, SampleConfig
 from jgrounding.generators import methods
+from jgrounding.generators.base import Generator
+from jgrounding.generators.conditions import bound_condition
+from jgrounding.generators.encoding import decode, encode
 from jgrounding.vocabulary import NUM_INTENSITIES
 
 
@@ -50,6 +53,11 @@ class Trained:
         return methods.spec(self.method)
 
     @property
+    def generator(self) -> Generator:
+        """The method's generator; what it can do is declared on it (``inpaints``, ``uses_context``, ...)."""
+        return self.spec.generator
+
+    @property
     def dim(self) -> int:
         """Flat size D = N_u x L of the generator's target."""
         return self.num_tendons * self.spec.representation.length(self.num_controls)
@@ -73,30 +81,43 @@ class Trained:
         listed = sorted(self.noise_scales)
         return self.noise_scales[next((s for s in listed if s >= steps), listed[-1])]
 
+    def settings(self, sampler=None, steps=SampleConfig.steps) -> tuple[str, int]:
+        """The one check of sampling settings against this model's generator: ``(sampler, steps)`` with the
+        generator's default sampler for None and ``steps`` 1 for a generator that takes none (a regressor);
+        ``ValueError`` naming the valid samplers, or the valid steps 1..``MAX_SAMPLE_STEPS``."""
+        valid = self.generator.samplers  # the first is the generator's default
+        chosen = valid[0] if sampler is None else sampler
+        if not isinstance(chosen, str) or chosen not in valid:
+            raise ValueError(f"unknown sampler {sampler!r} for {self.method}; valid: {', '.join(valid)}")
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= MAX_SAMPLE_STEPS:
+            raise ValueError(f"steps must be an integer in 1..{MAX_SAMPLE_STEPS}, got {steps!r}")
+        return chosen, int(steps) if self.generator.iterative else 1
+
     def resolve(self, config: SampleConfig | None = None) -> SampleConfig:
-        """``config`` (default: this model's own :attr:`sample_config`) with the generator's default sampler
-        filled in; ``ValueError`` naming the valid samplers for one this generator does not have."""
+        """``config`` (default: this model's own :attr:`sample_config`) checked by :meth:`settings` and filled
+        in: what every sampling boundary (``jg.sample``, evaluation, the benches) does once before the
+        compiled sampler, which checks nothing again. ``TypeError`` for anything but a :class:`SampleConfig`."""
         config = self.sample_config if config is None else config
-        valid = self.spec.generator.samplers  # the first is the generator's default
-        if config.sampler is None:
-            return dataclasses.replace(config, sampler=valid[0])
-        if config.sampler not in valid:
-            raise ValueError(f"unknown sampler {config.sampler!r} for {self.method}; valid: {', '.join(valid)}")
-        return config
+        if not isinstance(config, SampleConfig):
+            raise TypeError(f"config must be a jgrounding.config.SampleConfig, got {type(config).__name__}")
+        sampler, steps = self.settings(config.sampler, config.steps)
+        if (sampler, steps) == (config.sampler, config.steps) and type(config.steps) is int:
+            return config
+        return dataclasses.replace(config, sampler=sampler, steps=steps)
 
     def contexts(self, intent_emb, params=None):
         """The first-layer context rows of every (intent, intensity) tuple, ``(num_intents * 4, H)`` in
-        intent-major order, for a tuple-conditioned generator that takes them (``uses_context``): what
+        intent-major order, for a tuple-conditioned generator that takes them (``Generator.uses_context``): what
         :meth:`actuation` would compute from the intent embeddings, once instead of on every call. ``None``
         for a method without them (regressors, raw-text conditioning)."""
-        if not getattr(self.spec.generator, "uses_context", False) or self.spec.condition.needs_text:
+        if not self.generator.uses_context or self.spec.condition.needs_text:
             return None
         params = self.seed_params(0) if params is None else params
         m, z = np.divmod(np.arange(len(intent_emb) * NUM_INTENSITIES), NUM_INTENSITIES)
 
         @jax.jit  # one program (a first jg.sample lowers it once instead of one per operation)
         def table(params, emb):
-            return nnx.merge(self.graphdef, params).context(methods.bound_condition(emb[m]), z)
+            return nnx.merge(self.graphdef, params).context(bound_condition(emb[m]), z)
 
         return table(params, jnp.asarray(intent_emb, jnp.float32))
 
@@ -108,29 +129,30 @@ class Trained:
 
         Args:
           key: one key for the batch; cond: condition embeddings ``(B, E)``; intensity: ``(B,)`` int32.
-          config: sampler, steps and guidance (default: :attr:`sample_config`; :meth:`resolve`).
+          config: sampler, steps, guidance and noise scale, already through :meth:`resolve` (default: this
+            model's own :attr:`sample_config`, whose sampler None is the generator's default); nothing is
+            checked here, inside the compiled sampler.
           params: one seed's parameters (default: the first seed's).
           start: ``(B, N_u)`` commands in [0, 1] or None. Given, the first Catmull-Rom control column is fixed
             to it by inpainting during the flow integration (:func:`flows.rf_sample`), so ``u[:, 0] == start``
-            and the rest of the motion is generated from that state.
+            and the rest of the motion is generated from that state. Only for a method that can
+            (:func:`methods.check_start_conditioning`, checked at the boundary).
           context: the conditions' precomputed first-layer rows ``(B, H)`` (rows of :meth:`contexts`), or
             None; given, ``cond`` is not read.
         Returns:
           u ``(B, 150, N_u)``, not yet through the safety gate (:meth:`sample` gates it).
         """
-        s, config = self.spec, self.resolve(config)
+        s = self.spec
+        config = self.sample_config if config is None else config
         model = nnx.merge(self.graphdef, self.seed_params(0) if params is None else params)
-        cond = None if context is not None else methods.bound_condition(cond)
-        extra = {} if context is None else {"context": context}
-        if start is None:
-            y = s.generator.sample(model, cond, intensity, key, self.dim, config, **extra)
-        else:
-            methods.check_start_conditioning(self.method)
+        cond = None if context is not None else bound_condition(cond)
+        known = None
+        if start is not None:
             # Flat layout of the targets: (N_u, P) row-major, so tendon j's first control is coordinate j * P.
             mask = (jnp.arange(self.dim) % self.num_controls) == 0
-            first = jnp.repeat(methods.encode(jnp.asarray(start, jnp.float32)), self.num_controls, axis=-1)
-            y = s.generator.sample(model, cond, intensity, key, self.dim, config, known=(mask, first), **extra)
-        return s.representation.actuation(methods.decode(y), s.generator.sequence, self.num_tendons, self.num_controls)
+            known = mask, jnp.repeat(encode(jnp.asarray(start, jnp.float32)), self.num_controls, axis=-1)
+        y = s.generator.sample(model, cond, intensity, key, self.dim, config, known=known, context=context)
+        return s.representation.actuation(decode(y), s.generator.sequence, self.num_tendons, self.num_controls)
 
     def sample(self, key, cond, intensity, config: SampleConfig | None = None, **kwargs):
         """:meth:`actuation` (same arguments: ``params``, ``start``, ``context``) through the one safety gate

@@ -16,22 +16,20 @@ import argparse
 
 import numpy as np
 
-from jgrounding.semantics.embedded import (  # noqa: F401  (re-exported)
+from jgrounding.semantics.conditioning import (  # noqa: F401  (re-exported)
     ASSET,
-    CONFIDENCE_THRESHOLD,
-    MAX_CHARS,
-    NUM_POOLS,
-    PROTOTYPES_ASSET,
     compute_intent_embeddings,
-    compute_prototypes,
     embed,
-    features,
-    ground_cues,
-    ground_embedded,
-    ground_embedded_many,
     intent_embeddings,
+)
+from jgrounding.semantics.cue_reducer import (  # noqa: F401  (re-exported)
+    CONFIDENCE_THRESHOLD,
+    PROTOTYPES_ASSET,
+    compute_prototypes,
+    ground_cues,
     intent_scores,
 )
+from jgrounding.semantics.embedded import MAX_CHARS, ground_embedded, ground_embedded_many  # noqa: F401
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
 
@@ -94,12 +92,12 @@ def warmup(max_tokens: int = 128) -> None:
     from jgrounding.semantics import head as semantic_head
 
     head = semantic_head.load()
-    if head.config.inputs == "tuned":  # one program per bucket: the tuned encoder and the head together
+    if head.config.features.one_program:  # one program per bucket: the tuned encoder and the head together
         from jgrounding.semantics.embedded import warmup_tuned
 
         warmup_tuned(head, max_tokens)
     else:
-        encoder.warmup(max_tokens, pools=NUM_POOLS if head.config.inputs == "structure" else 0)
+        encoder.warmup(max_tokens, pools=head.config.features.pools)
     ground_embedded("warm up")
 
 

@@ -9,8 +9,8 @@ so the answer is always one of the 16 x 4 tuples. ``p(m | r)`` is a softmax over
 returned. ``p(z | r)`` is ordinal (cumulative-link) regression, P(z > k) = sigmoid(s(r) - theta_k) with
 ordered thresholds theta_0 < theta_1 < theta_2, so "subtle" and "emphatic" are far apart by construction.
 
-Features (``FEATURES`` wide) are the frozen sentence embedding (384), the Eq. (3) intent similarities of the
-cue-list reducer (16) and its degree cues (4). Parameters are a small pytree shipped in
+The features are one of the named input pipelines of :mod:`jgrounding.semantics.features` (the config's
+``inputs``; the shipped head's: ``tuned``, MiniLM with its top layers trained with the head). Parameters are a small pytree shipped in
 ``assets/semantic_head.npz`` (``python -m tools.train_semantics`` regenerates it, deterministically).
 """
 
@@ -27,39 +27,46 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jgrounding.semantics.features import Inputs, inputs_named
 from jgrounding.vocabulary import NUM_INTENTS
 
 ASSET = Path(__file__).resolve().parents[2] / "assets" / "semantic_head.npz"
 NUM_CLASSES = NUM_INTENTS + 1  # the 16 intents and "none" (last)
 NONE = NUM_INTENTS
-EMBED_DIM = 384
-NUM_DEGREE = 4
 
 
 @dataclasses.dataclass(frozen=True)
 class HeadConfig:
     hidden: int = 128  # width of the intent MLP's hidden layer (0: linear)
     z_hidden: int = 0  # width of the intensity scorer's hidden layer (0: linear score)
-    use_eq3: bool = True  # append the cue-list reducer's Eq. (3) scores and degree cues to the embedding
     l2: float = 1e-4  # weight decay
     learning_rate: float = 3e-3
     steps: int = 400  # full-batch Adam steps
     dropout: float = 0.1  # on the input features, intent branch
     seed: int = 0
-    inputs: str = ""  # "structure": the structure-aware features; "" : the embedding (+ Eq. (3) if use_eq3)
+    inputs: str = "eq3"  # the input pipeline, by its name in jgrounding.semantics.features.INPUTS
     num_reasons: int = 0  # classes of the "why no behaviour" head (0: none)
     reason_weight: float = 0.3  # its loss weight
     tuned_layers: int = 0  # "tuned": how many top encoder layers were trained with the head (shipped as deltas)
 
+    def __post_init__(self):
+        inputs_named(self.inputs)  # a clear error naming the valid pipelines
+
+    @property
+    def features(self) -> Inputs:
+        """The input pipeline this head reads (:data:`jgrounding.semantics.features.INPUTS`)."""
+        return inputs_named(self.inputs)
+
     @property
     def num_features(self) -> int:
-        if self.inputs in ("structure", "tuned"):
-            # Four poolings of the encoder, the chosen part's intent evidence (16) and degree cues (4), the
-            # rejected part's intent evidence (16) and the structure flags (embedded.structure_features).
-            from jgrounding.semantics.structure import NUM_FLAGS
+        return self.features.width
 
-            return 4 * EMBED_DIM + 2 * NUM_INTENTS + NUM_DEGREE + NUM_FLAGS
-        return EMBED_DIM + (NUM_INTENTS + NUM_DEGREE if self.use_eq3 else 0)
+    @classmethod
+    def from_dict(cls, d: dict) -> HeadConfig:
+        """The config a head file records; older files name the pipeline by ``use_eq3`` and an empty ``inputs``."""
+        d = dict(d)
+        use_eq3 = d.pop("use_eq3", True)
+        return cls(**d | {"inputs": d.get("inputs") or ("eq3" if use_eq3 else "embedding")})
 
 
 def init(key, cfg: HeadConfig, num_features: int | None = None) -> dict:
@@ -127,16 +134,6 @@ def ordinal_log_probs(s, theta, xp=jnp):
 def intensity_log_probs(params: dict, x):
     """Args: x ``(N, F)``. Returns ``(N, 4)`` log p(z | r) of the cumulative-link model."""
     return ordinal_log_probs(intensity_score(params, x), thresholds(params))
-
-
-def with_cut_points(params: dict, theta) -> dict:
-    """``params`` with the ordinal intensity cut points set to ``theta`` ``(3,)``, strictly increasing (a single
-    head; stored as theta0 and the softplus-inverse of the gaps, as :func:`thresholds` reads them)."""
-    theta = np.asarray(theta, np.float64)
-    gaps = np.diff(theta)
-    if theta.shape != (3,) or np.any(gaps <= 0):
-        raise ValueError(f"cut points must be 3 strictly increasing values, got {theta.tolist()}")
-    return dict(params, z_theta0=jnp.float32(theta[0]), z_gaps=jnp.asarray(np.log(np.expm1(gaps)), jnp.float32))
 
 
 def loss(params: dict, key, x, intent, intensity, weight, dropout: float = 0.0, why=None, why_weight: float = 0.0):
@@ -264,7 +261,7 @@ def predict_tuned(
     vector ``knn_pool``: 0 the whole text, 1 its chosen part).
 
     Args: enc_params (:meth:`Head.encoder_params`); ids, mask ``(B, L)``; pools ``(B, 4, L)``; extras ``(B, E)``
-    (:func:`jgrounding.semantics.embedded.tuned_extras`). Returns :func:`predict_all`'s three arrays."""
+    (:func:`jgrounding.semantics.features.tuned_extras`). Returns :func:`predict_all`'s three arrays."""
     from jgrounding.semantics import encoder
 
     pooled = encoder.pool_ids(enc_params, ids, mask, pools)
@@ -295,25 +292,6 @@ def decide(p_intent: np.ndarray, p_intensity: np.ndarray) -> tuple[np.ndarray, n
     m = np.argmax(p_intent[:, :NUM_INTENTS], axis=1)
     z = np.argmax(p_intensity, axis=1)
     return m, z, p_intent[np.arange(len(m)), m]
-
-
-def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
-    """ECE: sum over equal-width confidence bins of |accuracy - mean confidence| weighted by the bin's share."""
-    confidence, correct = np.asarray(confidence, float), np.asarray(correct, float)
-    idx = np.minimum((confidence * bins).astype(int), bins - 1)
-    return float(
-        sum(
-            abs(correct[idx == b].mean() - confidence[idx == b].mean()) * np.mean(idx == b)
-            for b in range(bins)
-            if np.any(idx == b)
-        )
-    )
-
-
-def fit_temperature(logits_fn, intent, grid=np.exp(np.linspace(np.log(0.3), np.log(5.0), 60))) -> float:
-    """The temperature (grid search) that minimises the NLL of the true intents; ``logits_fn(T)`` gives probs."""
-    nll = [-np.mean(np.log(np.clip(logits_fn(t)[np.arange(len(intent)), intent], 1e-9, 1))) for t in grid]
-    return float(grid[int(np.argmin(nll))])
 
 
 def flatten(tree: dict, prefix: str = "") -> dict:
@@ -428,12 +406,12 @@ def load(path: str | None = None) -> Head:
         raise FileNotFoundError(f"{path} missing; regenerate it with `python -m tools.train_semantics`")
     with np.load(path) as f:
         params = {k.split("/", 1)[1]: jnp.asarray(f[k]) for k in f.files if k.startswith("param/")}
-        cfg = HeadConfig(**json.loads(str(f["config"])))
+        cfg = HeadConfig.from_dict(json.loads(str(f["config"])))
         meta = json.loads(str(f["meta"]))
         deltas = unflatten({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
     enc = with_top(deltas, cfg) if cfg.tuned_layers else None
     threshold = float(meta["threshold"])
-    knn = load_knn(meta.get("params_digest", "")) if cfg.inputs == "tuned" else None
+    knn = load_knn(meta.get("params_digest", "")) if cfg.features.one_program else None
     if knn is not None:
         threshold = float(knn["meta"]["threshold"])
     return Head(params, cfg, float(meta["temperature"]), threshold, meta, enc, knn)

@@ -28,7 +28,7 @@ from flax import nnx
 from jgrounding import sim, training
 from jgrounding.actuation import splines
 from jgrounding.config import NUM_STEPS, PhysicsConfig, SampleConfig
-from jgrounding.generators import flows, methods
+from jgrounding.generators import encoding, flows
 from jgrounding.generators.trained import Trained
 from jgrounding.vocabulary import NUM_INTENSITIES, NUM_INTENTS
 
@@ -160,6 +160,6 @@ def finetune(
         )
         keys = jax.random.split(k_train, len(teacher.seeds))
         states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
-        states, _ = run(states, methods.encode(jnp.asarray(targets)))  # controls in [-1, 1], as the methods train
+        states, _ = run(states, encoding.encode(jnp.asarray(targets)))  # controls in [-1, 1], as the methods train
         params = training.eval_params(states)
     return dataclasses.replace(teacher, params=params, losses=None), report

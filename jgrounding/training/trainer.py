@@ -16,7 +16,7 @@ from flax import nnx
 
 from jgrounding.config import NUM_CONTROLS, ModelConfig, PhysicsConfig, SampleConfig, TrainConfig
 from jgrounding.generators import methods
-from jgrounding.generators.flows import RectifiedFlow
+from jgrounding.generators.encoding import encode
 from jgrounding.generators.trained import Trained
 from jgrounding.training import loop
 
@@ -39,7 +39,7 @@ def training_data(method: str, split, intent_emb: np.ndarray, text_emb: np.ndarr
     return {
         "cond": jnp.asarray(cond, jnp.float32),
         "intensity": jnp.asarray(intensity, jnp.int32),
-        "target": methods.encode(jnp.asarray(target, jnp.float32)),
+        "target": encode(jnp.asarray(target, jnp.float32)),
     }
 
 
@@ -128,7 +128,7 @@ def reflow(
     from jgrounding import semantics
 
     generator = teacher.spec.generator
-    if not isinstance(generator, RectifiedFlow):
+    if not generator.reflows:  # declared by the generator (jgrounding.generators.base.Generator)
         raise ValueError(f"reflow needs a rectified-flow teacher; {teacher.method} is not RF")
     methods.check_options(teacher.method, config)
     intent_emb = semantics.intent_embeddings() if intent_emb is None else intent_emb

@@ -88,7 +88,8 @@ def test_one_step_through_jg_sample_passes_the_gate_and_traces_once(checkpoint):
         u = jg.sample(jax.random.key(seed), intent, intensity, steps=1, checkpoint=checkpoint)
         assert u.shape == (150, 4) and jg.safety.is_safe(u)
         assert np.allclose(u[0], 0.0)  # blended in from rest
-    assert sampling.TRACES[(name, "euler", 1, 1)] == 1
+    config = sampling.model(checkpoint).config(None, 1)  # the keywords' resolved config keys the program cache
+    assert sampling.TRACES[(name, config, 1, "blend")] == 1
     many = jg.sample(jax.random.key(9), ["greeting", "pointing"], "moderate", num_samples=3, steps=1, checkpoint=name)
     assert many.shape == (2, 3, 150, 4) and jg.safety.is_safe(many)
 
@@ -111,7 +112,8 @@ def test_a_sampler_the_few_step_model_lacks_is_served_by_the_default():
     key = jax.random.key(4)
     u = jg.sample(key, "greeting", "moderate", steps=2, sampler="midpoint")  # routed: the default RF
     assert u.shape == (150, 4) and jg.safety.is_safe(u)
-    assert sampling.TRACES[(str(sampling.DEFAULT_CHECKPOINT), "midpoint", 2, 1)] == 1
+    config = sampling.model().config("midpoint", 2)
+    assert sampling.TRACES[(str(sampling.DEFAULT_CHECKPOINT), config, 1, "blend")] == 1
     assert jg.sample(key, "greeting", "moderate", steps=2).shape == (150, 4)  # the shipped few-step model
 
 

@@ -160,3 +160,17 @@ def test_sample_rejects_bad_input(kwargs, exc, match):
 def test_method_names_are_validated():
     with pytest.raises(ValueError, match="tuple_spline_rf"):
         methods.spec("tuple_spline_gan")
+
+
+def test_every_generator_declares_the_protocol_abilities_and_the_registry_reads_them():
+    from jgrounding.generators.base import Generator
+
+    abilities = Generator.__annotations__  # declared once, on the protocol: name -> "bool" or "tuple[str, ...]"
+    assert {"uses_context", "inpaints", "null_condition", "iterative"} <= set(abilities)
+    for name, s in methods.REGISTRY.items():
+        for ability, hint in abilities.items():
+            assert isinstance(getattr(s.generator, ability), bool if hint == "bool" else tuple), (name, ability)
+    starts = {n for n in methods.REGISTRY if methods.can_start_condition(n)}
+    assert starts == {"tuple_spline_rf", "tuple_spline_meanflow", "tuple_spline_shortcut", "tuple_spline_rf_physics"}
+    assert not methods.spec("tuple_spline_ddpm").generator.inpaints  # a DDPM sampler keeps no known coordinates
+    assert not methods.spec("tuple_spline_cnn").generator.null_condition  # a regressor has no guidance

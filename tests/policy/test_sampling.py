@@ -9,6 +9,7 @@ import pytest
 
 import jgrounding as jg
 from jgrounding import safety, sim
+from jgrounding.config import SampleConfig
 from jgrounding.policy import sampling
 from jgrounding.training import checkpoints
 
@@ -69,15 +70,67 @@ def test_too_many_trajectories_per_call_are_refused():
 
 def test_repeated_public_calls_trace_once_per_sampler_steps_bucket():
     name = str(sampling.DEFAULT_CHECKPOINT)
-    config = ("midpoint", 3)
+    sampler, steps = "midpoint", 3
     for seed, (intent, intensity, k) in enumerate(
         [("greeting", "subtle", 1), (4, 2, 1), ("resting", 0, 1), ("pointing", 1, 5), (0, 3, 7), ([1, 2], 0, 3)]
     ):
-        jg.sample(jax.random.key(seed), intent, intensity, num_samples=k, sampler=config[0], steps=config[1])
-        jg.sample(jax.random.PRNGKey(seed), intent, intensity, num_samples=k, sampler=config[0], steps=config[1])
-    assert sampling.TRACES[(name, *config, 1)] == 1
-    assert sampling.TRACES[(name, *config, 8)] == 1  # 5, 7 and 2 x 3 share the bucket of 8
-    assert sampling.TRACES[(name, *config, 2)] == 0
+        jg.sample(jax.random.key(seed), intent, intensity, num_samples=k, sampler=sampler, steps=steps)
+        jg.sample(jax.random.PRNGKey(seed), intent, intensity, num_samples=k, sampler=sampler, steps=steps)
+    config = sampling.model().config(sampler, steps)  # the cache key: the resolved config, the bucket, the start
+    assert config == SampleConfig(sampler, steps, config.guidance, config.noise_scale)
+    assert sampling.TRACES[(name, config, 1, "blend")] == 1
+    assert sampling.TRACES[(name, config, 8, "blend")] == 1  # 5, 7 and 2 x 3 share the bucket of 8
+    assert sampling.TRACES[(name, config, 2, "blend")] == 0
+
+
+def test_equal_configs_share_one_program_and_do_not_trace_again():
+    name = str(sampling.DEFAULT_CHECKPOINT)
+    before = sum(sampling.TRACES.values())
+    first = jg.sample(jax.random.key(1), "nodding", "subtle", config=SampleConfig(steps=50, guidance=0.25))
+    again = jg.sample(jax.random.key(1), "nodding", "subtle", config=SampleConfig(steps=50, guidance=0.25))
+    np.testing.assert_array_equal(first, again)
+    assert sum(sampling.TRACES.values()) == before + 1  # one trace for two calls with equal configs
+    resolved = SampleConfig("euler", 50, 0.25, 1.0)  # sampler None resolved to the generator's default
+    assert sampling.TRACES[(name, resolved, 1, "blend")] == 1
+    # the same settings spelled out are the same program
+    jg.sample(jax.random.key(2), "nodding", "subtle", config=resolved)
+    assert sum(sampling.TRACES.values()) == before + 1
+
+
+def test_a_config_is_used_as_given_and_the_keywords_take_the_recorded_settings():
+    key = jax.random.key(6)
+    recorded = sampling.default_config(steps=4)
+    assert recorded == sampling.model(sampling.shipped_checkpoint(4)).config(None, 4)  # the model serving S = 4
+    np.testing.assert_array_equal(jg.sample(key, 3, 1, steps=4), jg.sample(key, 3, 1, config=recorded))
+    hotter = dataclasses.replace(recorded, noise_scale=recorded.noise_scale + 0.5)
+    assert not np.allclose(jg.sample(key, 3, 1, config=recorded), jg.sample(key, 3, 1, config=hotter))
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, match",
+    [
+        ({"steps": 8}, ValueError, "not both"),
+        ({"sampler": "euler"}, ValueError, r"dataclasses.replace\(config, sampler='euler'\)"),
+    ],
+)
+def test_keywords_that_would_conflict_with_config_are_refused(kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        jg.sample(jax.random.key(0), "greeting", "subtle", config=SampleConfig(steps=4), **kwargs)
+
+
+@pytest.mark.parametrize(
+    "config, exc, match",
+    [
+        ({"steps": 4}, TypeError, "config must be a jgrounding.config.SampleConfig"),
+        (SampleConfig(sampler="ddim"), ValueError, "unknown sampler 'ddim' for tuple_spline_rf; valid: euler"),
+        (SampleConfig(steps=5000), ValueError, r"steps must be an integer in 1\.\.1000"),
+    ],
+)
+def test_a_bad_config_is_refused_at_the_boundary_naming_the_valid_choices(config, exc, match):
+    with pytest.raises(exc, match=match):
+        jg.sample(jax.random.key(0), "greeting", "subtle", config=config)
+    with pytest.raises(exc, match=match):
+        sampling.screened(jax.random.key(0), "greeting", "subtle", config=config)
 
 
 @pytest.mark.slow

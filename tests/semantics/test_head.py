@@ -8,15 +8,16 @@ import numpy as np
 import pytest
 
 import jgrounding as jg
+from jgrounding.semantics import calibration, features
 from jgrounding.semantics import head as sh
 
 
 def test_ordinal_probabilities_are_a_distribution_with_ordered_cuts():
-    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, use_eq3=False))
+    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, inputs="embedding"))
     params["z_gaps"] = jnp.array([-3.0, 2.0])  # softplus keeps even a negative gap positive
     theta = np.asarray(sh.thresholds(params))
     assert np.all(np.diff(theta) > 0)
-    x = jax.random.normal(jax.random.key(1), (5, sh.EMBED_DIM))
+    x = jax.random.normal(jax.random.key(1), (5, features.EMBED_DIM))
     p = np.exp(np.asarray(sh.intensity_log_probs(params, x)))
     np.testing.assert_allclose(p.sum(1), 1.0, atol=1e-5)
 
@@ -32,7 +33,7 @@ def test_decision_is_a_vocabulary_tuple_and_none_only_lowers_confidence():
 def test_ece_by_hand():
     # Bin [0.9, 1.0): confidences 0.95, 0.95, right once -> |0.5 - 0.95| * 2/4;
     # bin [0.5, 0.6): 0.55, 0.55, both right -> |1 - 0.55| * 2/4.  ECE = 0.225 + 0.225.
-    assert sh.expected_calibration_error([0.95, 0.95, 0.55, 0.55], [1, 0, 1, 1]) == pytest.approx(0.45)
+    assert calibration.expected_calibration_error([0.95, 0.95, 0.55, 0.55], [1, 0, 1, 1]) == pytest.approx(0.45)
 
 
 def test_shipped_head_loads_with_calibration():
@@ -89,10 +90,10 @@ def test_low_confidence_escalates_to_a_configured_mllm():
 
 
 def test_cut_points_set_on_a_head_are_the_ones_it_reads():
-    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, use_eq3=False))
-    moved = sh.with_cut_points(params, [-1.0, 0.5, 2.5])
+    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, inputs="embedding"))
+    moved = calibration.with_cut_points(params, [-1.0, 0.5, 2.5])
     np.testing.assert_allclose(np.asarray(sh.thresholds(moved)), [-1.0, 0.5, 2.5], atol=1e-5)
-    x = jax.random.normal(jax.random.key(1), (4, sh.EMBED_DIM))
+    x = jax.random.normal(jax.random.key(1), (4, features.EMBED_DIM))
     s = sh.intensity_score(moved, x)  # the numpy form of the ordinal model equals the jax one
     np.testing.assert_allclose(
         sh.ordinal_log_probs(np.asarray(s, np.float64), np.array([-1.0, 0.5, 2.5]), xp=np),
@@ -100,14 +101,14 @@ def test_cut_points_set_on_a_head_are_the_ones_it_reads():
         atol=1e-5,
     )
     with pytest.raises(ValueError, match="strictly increasing"):
-        sh.with_cut_points(params, [0.0, 0.0, 1.0])
+        calibration.with_cut_points(params, [0.0, 0.0, 1.0])
 
 
 def test_cut_points_fitted_on_dev_move_toward_the_labels():
     from tools import train_semantics as ts
 
-    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, use_eq3=False))
-    x = jax.random.normal(jax.random.key(2), (400, sh.EMBED_DIM))
+    params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, inputs="embedding"))
+    x = jax.random.normal(jax.random.key(2), (400, features.EMBED_DIM))
     s = np.asarray(sh.intensity_score(params, x), np.float64)
     theta = np.asarray(sh.thresholds(params), np.float64)
     # Labels drawn from cut points 0.75 higher than the trained ones: every level is reached later.
@@ -116,6 +117,6 @@ def test_cut_points_fitted_on_dev_move_toward_the_labels():
     z = np.array([rng.choice(4, p=row / row.sum()) for row in p])
     rows = [{"intent": "nodding", "intensity": jg.INTENSITIES[k]} for k in z]
     rows.append({"intent": "none", "intensity": None})  # no-behaviour rows carry no intensity: skipped
-    cuts, shift = ts.fit_cut_points(params, np.concatenate([np.asarray(x), np.zeros((1, sh.EMBED_DIM))]), rows)
+    cuts, shift = ts.fit_cut_points(params, np.concatenate([np.asarray(x), np.zeros((1, features.EMBED_DIM))]), rows)
     assert np.all(shift > 0) and np.all(np.abs(shift - 0.75) <= 0.5)
     np.testing.assert_allclose(cuts, theta + shift)

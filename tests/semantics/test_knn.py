@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from jgrounding.semantics import embedded
+from jgrounding.semantics import embedded, features
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS
 from tools import semantics_knn, train_semantics
@@ -27,7 +27,7 @@ def test_table_matches_its_digest_and_the_shipped_head(head):
         table, labels = f["table"], f["labels"]
     assert meta["digest"] == sh.knn_digest(table, labels) == head.knn["meta"]["digest"]
     assert meta["head_digest"] == head.meta["params_digest"]
-    assert table.shape == (meta["rows"], sh.EMBED_DIM) and labels.max() <= sh.NONE
+    assert table.shape == (meta["rows"], features.EMBED_DIM) and labels.max() <= sh.NONE
     np.testing.assert_allclose(np.linalg.norm(table.astype(np.float32), axis=1), 1.0, atol=2e-3)
     assert head.threshold == meta["threshold"] and head.knn_k == meta["k"]
     assert meta["dev_score"] > meta["head_alone"]["score"]  # it shipped under the ship rule
@@ -51,7 +51,7 @@ def test_table_holds_the_vote_only_rows_that_the_head_never_trained_on(head):
 
 def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_path):
     rng = np.random.default_rng(0)
-    table = rng.normal(size=(6, sh.EMBED_DIM))
+    table = rng.normal(size=(6, features.EMBED_DIM))
     table /= np.linalg.norm(table, axis=1, keepdims=True)
     path = sh.save_knn(
         tmp_path / "knn.npz", table, np.arange(6), np.zeros(4), dict(k=2, tau=0.05, a=0.5, head_digest="x")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from jgrounding import semantics
-from jgrounding.semantics import embedded, encoder, structure
+from jgrounding.semantics import embedded, encoder, features, structure
 from jgrounding.semantics import head as semantic_head
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
@@ -20,10 +20,10 @@ TEXTS = [
 def test_bucketed_padding_gives_the_full_length_result(head):
     params = head.encoder_params()
     structs = [structure.analyse(t) for t in TEXTS]
-    (idx, ids, mask, pools), *_ = list(embedded.encoder_batches(TEXTS[:1], structs[:1]))
+    (idx, ids, mask, pools), *_ = list(features.encoder_batches(TEXTS[:1], structs[:1]))
     assert ids.shape == (1, encoder.BUCKETS[0])  # a short text alone runs the shortest bucket
     for i, text in enumerate(TEXTS):
-        (_, ids, mask, pools), *_ = list(embedded.encoder_batches([text], [structs[i]]))
+        (_, ids, mask, pools), *_ = list(features.encoder_batches([text], [structs[i]]))
         length = ids.shape[1]
         assert length == encoder.bucket_length(int(mask.sum()))
         full = encoder.MAX_TOKENS
@@ -36,12 +36,14 @@ def test_bucketed_padding_gives_the_full_length_result(head):
 
 
 def test_one_program_equals_the_encoder_then_the_head(head):
-    x = embedded.head_inputs(head, TEXTS)  # the two-step path the head was trained and calibrated with
+    x = features.head_inputs(head, TEXTS)  # the two-step path the head was trained and calibrated with
     two_step = [np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature)]
     if head.knn is not None:  # then the nearest-neighbour vote, as tools.semantics_knn compared it on dev
-        dim = semantic_head.EMBED_DIM
+        dim = features.EMBED_DIM
         query = x[:, head.knn_pool * dim : (head.knn_pool + 1) * dim]
-        vote = semantic_head.knn_blend(head.knn["arrays"], two_step[0], query, x[:, 4 * dim :], head.knn_k)
+        vote = semantic_head.knn_blend(
+            head.knn["arrays"], two_step[0], query, x[:, features.POOLED_FEATURES :], head.knn_k
+        )
         two_step[0] = np.asarray(vote)
     batched = embedded.predict_tuned_many(head, TEXTS)
     alone = [embedded.predict_tuned_many(head, [t]) for t in TEXTS]
@@ -70,7 +72,7 @@ def test_grounding_reads_half_stored_matrices_with_the_float32_result(head):
     full = encoder.load_params()
     half = jax.device_put(encoder.half_matrices(encoder.load_numpy()))
     structs = [structure.analyse(t) for t in TEXTS]
-    for idx, ids, mask, pools in embedded.encoder_batches(TEXTS, structs):
+    for idx, ids, mask, pools in features.encoder_batches(TEXTS, structs):
         a = np.asarray(encoder.pool_ids(full, ids, mask, pools))
         b = np.asarray(encoder.pool_ids(half, ids, mask, pools))
         assert 0 < np.abs(a - b).max() < 1e-3  # rounded, and only by rounding

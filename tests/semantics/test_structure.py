@@ -9,7 +9,7 @@ import pytest
 
 import jgrounding as jg
 from jgrounding import semantics
-from jgrounding.semantics import embedded, encoder, structure
+from jgrounding.semantics import cue_reducer, encoder, features, structure
 from jgrounding.semantics import head as sh
 
 
@@ -53,14 +53,14 @@ def test_quotes_addressee_logs_and_not_understood_are_flagged():
 
 def test_pooled_sentence_is_the_sentence_embedding_and_spans_pool_their_tokens():
     texts = ["Rather than a big hug, just give a small wave.", 'Say "hello" to the user.']
-    x = embedded.structure_features(texts)
-    assert x.shape == (2, embedded.STRUCTURE_FEATURES + structure.NUM_FLAGS)
+    x = features.structure_features(texts)
+    assert x.shape == (2, features.INPUTS["structure"].width)
     np.testing.assert_allclose(x[:, :384], encoder.embed(texts), atol=1e-5)
     rejected, quoted = x[:, 2 * 384 : 3 * 384], x[:, 3 * 384 : 4 * 384]
     assert np.linalg.norm(rejected[0]) == pytest.approx(1, abs=1e-4) and not rejected[1].any()
     assert np.linalg.norm(quoted[1]) == pytest.approx(1, abs=1e-4) and not quoted[0].any()
     # A text pooled alone gets the same features as in a batch (padding rows and buckets do not leak).
-    np.testing.assert_allclose(embedded.structure_features(texts[:1]), x[:1], atol=1e-4)
+    np.testing.assert_allclose(features.structure_features(texts[:1]), x[:1], atol=1e-4)
 
 
 def test_ground_many_matches_ground_one_by_one():
@@ -118,8 +118,8 @@ def test_shipped_head_is_structure_aware_with_reasons():
 
 
 def test_shipped_cue_prototypes_match_a_fresh_computation():
-    fresh = embedded.compute_prototypes()
-    e, owner, inten = embedded.prototypes()
+    fresh = cue_reducer.compute_prototypes()
+    e, owner, inten = cue_reducer.prototypes()
     np.testing.assert_allclose(e, fresh["prototypes"], atol=1e-5)
     np.testing.assert_array_equal(owner, fresh["owner"])
     np.testing.assert_allclose(inten, fresh["intensities"], atol=1e-5)
