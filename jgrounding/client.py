@@ -7,7 +7,8 @@
 ...     for tick in c.stream(text="Wave hello"):           # one command per 1/30 s
 ...         robot.send(tick.u)
 
-Messages are msgpack maps over one WebSocket (docs/serving.md); arrays come back as numpy arrays.
+Messages are msgpack maps over one WebSocket (docs/serving.md), in the server's own codec
+(:mod:`jgrounding.serving.wire`); arrays come back as numpy arrays.
 ``python -m jgrounding.client "User seems sad; respond calmly"`` prints the grounding and a summary.
 """
 
@@ -19,8 +20,9 @@ import itertools
 import sys
 import time
 
-import msgpack
 import numpy as np
+
+from jgrounding.serving import wire
 
 DEFAULT_URL = "ws://127.0.0.1:8765/ws"
 ACK_EVERY = 10  # ticks between keep-alives of a stream (the server glides to rest after its stall time)
@@ -32,20 +34,6 @@ class ServerError(RuntimeError):
     def __init__(self, code: str, message: str):
         super().__init__(f"{code}: {message}")
         self.code = code
-
-
-def _unpack_ndarrays(obj):
-    if isinstance(obj, dict) and obj.get("__ndarray__") is True:
-        return np.frombuffer(obj["data"], dtype=np.dtype(obj["dtype"])).reshape(obj["shape"]).copy()
-    return obj
-
-
-def _pack(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    raise TypeError(f"cannot send {type(obj).__name__}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,7 +75,7 @@ class Client:
         message = dict(message)
         message.setdefault("id", next(self._ids))
         try:
-            self.ws.send(msgpack.packb(message, default=_pack, use_bin_type=True))
+            self.ws.send(wire.encode_request(message))
         except Exception as e:
             self._closed(e)
         return message["id"]
@@ -107,11 +95,7 @@ class Client:
             frame = self.ws.recv(timeout=self.timeout if timeout is None else timeout)
         except Exception as e:
             self._closed(e)
-        if isinstance(frame, str):  # the server answers an unauthorized connection in JSON before closing
-            import json
-
-            return json.loads(frame)
-        return msgpack.unpackb(frame, raw=False, object_hook=_unpack_ndarrays)
+        return wire.decode_reply(frame)  # JSON: the server answers an unauthorized connection so, then closes
 
     def request(self, message: dict) -> dict:
         """Send a request and return its reply (ticks of a running stream are kept aside); raises

@@ -300,8 +300,8 @@ def test_source_paths_named_in_docs_and_code_exist():
 
 # --- Layers run one way (issue #22) --------------------------------------------------------------------------
 # base (the package root, its shared utilities, sim, actuation, semantics, library) -> generators -> training
-# -> policy (jg.sample: restores checkpoints, so above training) -> evaluation -> apps / serve / client /
-# experiments / tools. A module imports from its own layer or below;
+# -> policy (jg.sample: restores checkpoints, so above training) -> evaluation -> apps / serving / serve /
+# client / experiments / tools. A module imports from its own layer or below;
 # lazy imports inside functions count. ``from jgrounding import sample`` and ``jg.sample`` count as what the
 # root's lazy table resolves them to.
 
@@ -320,13 +320,14 @@ LAYERS = {
     "jgrounding.policy": 3,
     "jgrounding.evaluation": 4,
     "jgrounding.apps": 5,
+    "jgrounding.serving": 5,  # the policy server; the client shares its wire codec (jgrounding.serving.wire)
     "jgrounding.serve": 5,
     "jgrounding.client": 5,
     "jgrounding.__main__": 5,
     "experiments": 5,
     "tools": 5,
 }
-LAYER_NAMES = ("base", "generators", "training", "policy", "evaluation", "apps/experiments/tools")
+LAYER_NAMES = ("base", "generators", "training", "policy", "evaluation", "apps/serving/experiments/tools")
 
 # Known upward imports: (importer, imported module) -> why it is there. Issue #22's refactor removed the last
 # seven (a trained model that owns its sampling, training and restore in training/, batch generation in

@@ -144,11 +144,11 @@ def test_cli_and_server_give_the_same_decision_and_trajectory(model, own_checkpo
     """One decision path (issue #33): for the same text, key and checkpoint the CLI and the server snap, hold
     or move alike and return the same trajectory, for the built-in model and a lab's model (which knows only
     some tuples: another intensity snaps to the nearest learned one, an unlearned intent holds still)."""
-    from jgrounding.apps import server
+    from jgrounding import serving
     from jgrounding.client import Client
 
     checkpoint = None if model == "shipped" else own_checkpoint
-    run = server.Running(server.Server(server.Policy(checkpoint, warm=False)))
+    run = serving.Running(serving.Server(serving.Policy(checkpoint, warm=False)))
     try:
         client = Client(run.url)
         for i, text in enumerate(["Nod gently, just a little", "User seems sad; respond calmly", "Wave hello!"]):
@@ -172,10 +172,10 @@ def test_cli_and_server_give_the_same_decision_and_trajectory(model, own_checkpo
 def test_server_stream_snaps_or_holds_for_a_lab_model(own_checkpoint):
     """A lab's model behind the stream: an unlearned intent holds still with its reason and another intensity
     of a learned intent moves, never an error."""
-    from jgrounding.apps import server
+    from jgrounding import serving
     from jgrounding.client import Client
 
-    run = server.Running(server.Server(server.Policy(own_checkpoint, warm=False)))
+    run = serving.Running(serving.Server(serving.Policy(own_checkpoint, warm=False)))
     try:
         client = Client(run.url)
         sad = client.request({"type": "ground", "text": "User seems sad; respond calmly"})

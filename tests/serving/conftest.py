@@ -7,15 +7,15 @@ import pytest
 
 @pytest.fixture(scope="session")
 def policy():
-    from jgrounding.apps import server
+    from jgrounding import serving
 
-    return server.Policy()
+    return serving.Policy()
 
 
 @pytest.fixture(scope="module")
 def running(policy):
-    from jgrounding.apps import server
+    from jgrounding import serving
 
-    run = server.Running(server.Server(policy))
+    run = serving.Running(serving.Server(policy))
     yield run
     run.stop()

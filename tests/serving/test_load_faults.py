@@ -72,7 +72,7 @@ def test_stalled_client_glides_to_rest(running):
 def test_stalled_model_the_stream_goes_on(policy):
     import time
 
-    from jgrounding.apps import server
+    from jgrounding import serving
     from jgrounding.client import Client
 
     class Slow:  # the model takes 0.5 s for one response
@@ -87,7 +87,7 @@ def test_stalled_model_the_stream_goes_on(policy):
                 time.sleep(0.5)
             return self.inner.sample(*a, **k)
 
-    run = server.Running(server.Server(Slow(policy)))
+    run = serving.Running(serving.Server(Slow(policy)))
     try:
         with Client(run.url) as c:
             s = c.stream(intent="greeting", intensity="moderate", seed=1)
