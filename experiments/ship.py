@@ -1,11 +1,11 @@
 """Train and ship the public model, chosen on the benchmark's distribution metrics: ``python -m experiments.ship``.
 
-1. Trains the default model into assets/checkpoints/tuple_spline_rf: Tuple + Spline + RF (Table I sizes)
+1. Trains the default model into jgrounding/assets/checkpoints/tuple_spline_rf: Tuple + Spline + RF (Table I sizes)
    with the options the training sweep chose (condition dropout for guidance, EMA), on every library pair
    (train and held out: the user's model; Table II keeps the paper's 192/64 protocol; the evaluation set
    is never trained on), for ``--steps``.
-2. Trains its 2-rectified flow into assets/checkpoints/tuple_spline_rf_reflow, and MeanFlow and the shortcut
-   model (issue #25; same options and data) into assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
+2. Trains its 2-rectified flow into jgrounding/assets/checkpoints/tuple_spline_rf_reflow, and MeanFlow and the shortcut
+   model (issue #25; same options and data) into jgrounding/assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
    few-step candidates.
 3. For each step count S in ``STEP_COUNTS``, scores every (checkpoint, guidance w, noise scale T)
    candidate through ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples)
@@ -16,7 +16,7 @@
    checkpoint and one noise scale per (checkpoint, S) (:func:`assign`). T is the temperature of the
    initial noise (:class:`jgrounding.config.SampleConfig`): the models trained on 4 realizations per
    tuple sample less spread than the demonstrations at T = 1, a few-step model the least. The chosen
-   guidance and noise scales are recorded in each checkpoint; assets/checkpoints/shipped.json says which
+   guidance and noise scales are recorded in each checkpoint; jgrounding/assets/checkpoints/shipped.json says which
    checkpoint serves which S with the scores on the *report half* (never used to choose), the choice
    half and all tuples, and the served settings on the report half again with 6 other keys
    (:func:`fresh_keys`); results/ship.md tabulates them.
@@ -36,9 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from experiments import train
-from jgrounding.io import write_atomic
+from jgrounding.io import asset, write_atomic
 
-CKPT = Path("assets/checkpoints")
+CKPT = asset("checkpoints")  # the shipped checkpoints and shipped.json: package data (jgrounding/assets)
 DEFAULT, REFLOW = "tuple_spline_rf", "tuple_spline_rf_reflow"
 MEANFLOW, SHORTCUT = "tuple_spline_meanflow", "tuple_spline_shortcut"  # checkpoint = method name
 CANDIDATES = (DEFAULT, REFLOW, MEANFLOW, SHORTCUT)
@@ -303,7 +303,7 @@ def report(manifest: dict) -> str:
     }
     lines = [
         "What `jg.sample` serves for each step count (`python -m experiments.ship`; "
-        "assets/checkpoints/shipped.json), through `jg.sample` itself (default `current`, K = 30 samples per "
+        "jgrounding/assets/checkpoints/shipped.json), through `jg.sample` itself (default `current`, K = 30 samples per "
         "tuple). Guidance w and noise scale T (temperature of the initial noise) are chosen on the *choice "
         "half* of the 64 tuples (intent + intensity even): best mean of Prec@r, ModeCov, intent and intensity "
         f"retrieval with the MM ratio in {MM_WINDOW[0]}-{MM_WINDOW[1]}; the table scores the other half "

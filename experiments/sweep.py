@@ -153,7 +153,7 @@ def sweep_steps(args) -> dict:
         if holds_success and holds_diversity
         else "so few-step sampling of this model alone does not hold quality; jg.sample serves small step counts "
         "with the few-step model experiments.ship chose for them on the distribution metrics "
-        "(assets/checkpoints/shipped.json; sweep fewstep)"
+        "(jgrounding/assets/checkpoints/shipped.json; sweep fewstep)"
     )
     lines += [
         "",

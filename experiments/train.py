@@ -1,6 +1,6 @@
 """Train one method and save an orbax checkpoint (resumable):
 
-    python -m experiments.train --method tuple_spline_rf --steps 10000 --seeds 0 --out assets/checkpoints/tuple_spline_rf
+    python -m experiments.train --method tuple_spline_rf --steps 10000 --seeds 0 --out jgrounding/assets/checkpoints/tuple_spline_rf
 
 ``--library my_library.npz`` trains on another library, e.g. one imported from recordings
 (``python -m jgrounding.library import DIR --out my_library.npz``; docs/own_data.md); the number of
@@ -39,7 +39,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", required=True, help="checkpoint directory (resumes if it holds a partial run)")
     p.add_argument("--num-controls", type=int, default=4)
     p.add_argument("--devices", type=int, default=1, help="split the seeds over this many devices (0 = all)")
-    p.add_argument("--library", help="library .npz to train on (default: the shipped assets/library.npz)")
+    p.add_argument("--library", help="library .npz to train on (default: the shipped jgrounding/assets/library.npz)")
     p.add_argument(
         "--data",
         choices=("train", "all"),

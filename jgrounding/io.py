@@ -1,14 +1,39 @@
-"""Small shared utilities with no dependency on the rest of the package: atomic writes, hashes and the folder
-where compiled programs persist."""
+"""Small shared utilities with no dependency on the rest of the package: atomic writes, hashes, the folder
+where compiled programs persist, and where the package's own run-time files are (:func:`asset`)."""
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.resources
 import os
 import stat
 import tempfile
 from pathlib import Path
+
+
+@functools.lru_cache(maxsize=1)
+def _package_root() -> Path:
+    root = importlib.resources.files("jgrounding")
+    if not isinstance(root, Path):  # a zip import or a namespace package: orbax and MuJoCo need real files
+        raise RuntimeError(f"jgrounding must be installed as files on disk (found {root!r}); pip install the wheel")
+    return root.resolve()
+
+
+def package_file(*parts: str) -> Path:
+    """A file shipped inside the package, ``jgrounding/<parts>`` (the server's page: ``package_file("apps",
+    "static")``), found through ``importlib.resources``: the same in a git checkout, an editable install and an
+    installed wheel."""
+    return _package_root().joinpath(*parts)
+
+
+def asset(*parts: str) -> Path:
+    """The one place run-time data is found: ``jgrounding/assets/<parts>``, package data of the wheel. It holds
+    the shipped checkpoints and ``checkpoints/shipped.json``, the semantic head and its nearest-neighbour table,
+    the intent embeddings and cue prototypes, the demonstration library (``library.npz`` + ``library.json``) and
+    ``trunk.xml``; ``asset()`` is the folder. Development data (training corpora, evaluation sets, examples)
+    stays in the repository's top-level ``assets/``."""
+    return package_file("assets", *parts)
 
 
 def write_atomic(path: str | os.PathLike, data: bytes | str, *, mode: int | None = None) -> Path:

@@ -1,6 +1,6 @@
 """Regenerate the demonstration library: ``python -m tools.build_library [--seed N]``.
 
-Writes assets/library.npz + assets/library.json (byte-identical for a seed), the library card
+Writes jgrounding/assets/library.npz + jgrounding/assets/library.json (byte-identical for a seed), the library card
 docs/library_card.md and its figures under docs/library/.
 """
 

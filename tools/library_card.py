@@ -1,7 +1,7 @@
 """The library card: docs/library_card.md and docs/library/*.png, generated from the library itself.
 
 ``python -m tools.library_card`` (also run by ``tools.build_library``). It reads
-assets/library.npz and never rewrites it. Figures: acceptance rates per tuple and per check, the RMS
+jgrounding/assets/library.npz and never rewrites it. Figures: acceptance rates per tuple and per check, the RMS
 distance distributions within and between tuples (tau_rms marked), and one figure per intent (tendon
 curves of the 4 realizations at the pronounced intensity and the simulated motion of one of them), and
 one *axis* figure per intent: tendon curves and the simulated posture per variant (rows) and per

@@ -95,7 +95,7 @@ def section() -> str:
             "These results were measured on library v2 and are kept, unchanged, in `results/library_v2/`: "
             + ", ".join(f"`{n}`" for n in old)
             + ". The shipped model is now chosen on the distribution metrics by `python -m experiments.ship` "
-            "(assets/checkpoints/shipped.json records the scores it was chosen on).",
+            "(jgrounding/assets/checkpoints/shipped.json records the scores it was chosen on).",
             "",
         ]
     if (ROOT / "results" / "ablation.md").exists():
@@ -116,9 +116,15 @@ def update(readme: Path = ROOT / "README.md", versions: Path = ROOT / "docs" / "
 
     write_atomic(readme, _replace_block(readme.read_text(), START, END, section(), readme))
     print(f"updated the results section of {readme}")
-    bench = [ROOT / "results" / n for n in ("bench_trunk.md", "bench_trunk_compile.md")]
+    # The throughput run, then the compile probe of each lane (results/bench_trunk_compile_jax<version>.md).
+    bench = [ROOT / "results" / "bench_trunk.md", *sorted((ROOT / "results").glob("bench_trunk_compile_jax*.md"))]
     if versions.exists() and any(p.exists() for p in bench):
-        body = "\n\n".join(p.read_text().strip() for p in bench if p.exists())
+        body = "\n\n".join(
+            (f"Compile probe, jax {p.stem.removeprefix('bench_trunk_compile_jax')}:\n\n" if "compile" in p.stem else "")
+            + p.read_text().strip()
+            for p in bench
+            if p.exists()
+        )
         write_atomic(
             versions,
             _replace_block(
@@ -126,6 +132,19 @@ def update(readme: Path = ROOT / "README.md", versions: Path = ROOT / "docs" / "
             ),
         )
         print(f"updated the trunk benchmark in {versions}")
+    bisect = ROOT / "results" / "mjx_compile_bisect.md"  # python -m experiments.bench trunk --bisect
+    if versions.exists() and bisect.exists() and "<!-- bench:bisect:start -->" in versions.read_text():
+        write_atomic(
+            versions,
+            _replace_block(
+                versions.read_text(),
+                "<!-- bench:bisect:start -->",
+                "<!-- bench:bisect:end -->",
+                bisect.read_text().strip(),
+                versions,
+            ),
+        )
+        print(f"updated the MJX compile bisection in {versions}")
 
 
 if __name__ == "__main__":

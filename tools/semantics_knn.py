@@ -1,9 +1,9 @@
 """A nearest-neighbour vote over the training texts, blended with the shipped tuned head (#24, dev only).
 
     python -m tools.semantics_knn          # compare the variants: results/semantics_dev_knn.json
-    python -m tools.semantics_knn --write  # the chosen variant (CHOSEN): assets/semantic_knn.npz
+    python -m tools.semantics_knn --write  # the chosen variant (CHOSEN): jgrounding/assets/semantic_knn.npz
 
-For every text the shipped head (``assets/semantic_head.npz``) already computes its tuned encoder's four pooled
+For every text the shipped head (``jgrounding/assets/semantic_head.npz``) already computes its tuned encoder's four pooled
 vectors and its hidden layer. Here the training texts (``assets/semantics_train/*.jsonl``) are put through the
 same path once, and a dev text's intent distribution becomes
 
@@ -319,7 +319,7 @@ def table_rows() -> tuple[list[dict], np.ndarray]:
 
 
 def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: bool = False) -> int:
-    """Write :data:`CHOSEN` as ``assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
+    """Write :data:`CHOSEN` as ``jgrounding/assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
     blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule. Every other
     table is scored the same way first, for the record. ``x``, ``p_head``: each evaluation set's head inputs and
     the head's probabilities, by name; ``scored``: their evaluation (main's). ``dry``: print the scores, write

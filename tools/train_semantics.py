@@ -1,4 +1,4 @@
-"""Train, compare, select and calibrate the semantic head; write ``assets/semantic_head.npz``.
+"""Train, compare, select and calibrate the semantic head; write ``jgrounding/assets/semantic_head.npz``.
 
     python -m tools.semantics_corpus      # regenerate assets/semantics_train/generated.jsonl
     python -m tools.train_semantics       # train on assets/semantics_train/*.jsonl, select/calibrate on dev
@@ -16,7 +16,7 @@ no-behaviour text) stay within ``TARGET_WRONG``. The option with the best dev sc
 shipped. The test splits are never read here. Deterministic: fixed keys and seeded minibatch order. Frozen encoder
 features are cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span code), so re-runs skip
 the encoder; the "tuned" option (top encoder layers trained with the head) takes about 8 minutes on 2 cores.
-A new head makes the nearest-neighbour table (``assets/semantic_knn.npz``) stale: it is ignored until
+A new head makes the nearest-neighbour table (``jgrounding/assets/semantic_knn.npz``) stale: it is ignored until
 ``python -m tools.semantics_knn --write`` rebuilds it for the new head.
 """
 

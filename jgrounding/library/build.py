@@ -7,10 +7,10 @@ candidates from :mod:`jgrounding.library.primitives` are reduced to Catmull-Rom 
 :mod:`jgrounding.library.screening`, and the first four that pass are kept. One realization per tuple, drawn
 from the seed, is held out: 192 train / 64 held-out.
 
-File format (``FORMAT_VERSION`` 1): ``assets/library.npz`` with arrays ``u (256,150,4) f32``,
+File format (``FORMAT_VERSION`` 1): ``jgrounding/assets/library.npz`` with arrays ``u (256,150,4) f32``,
 ``controls (256,4,P) f32``, ``intent``, ``intensity``, ``realization``, ``variant``, ``heldout`` (bool),
 ``texts (256, n_texts) str``, and the evaluation set ``eval_u (E,150,4)``, ``eval_controls``,
-``eval_intent``, ``eval_intensity``, ``eval_variant`` (E = 64 x ``eval_realizations``, never trained on); and ``assets/library.json``, the card (seed, config, acceptance rates,
+``eval_intent``, ``eval_intensity``, ``eval_variant`` (E = 64 x ``eval_realizations``, never trained on); and ``jgrounding/assets/library.json``, the card (seed, config, acceptance rates,
 sha256 of the npz). Both are byte-identical for the same seed.
 """
 
@@ -27,6 +27,7 @@ import numpy as np
 from jgrounding import safety
 from jgrounding.actuation import splines
 from jgrounding.config import NUM_CONTROLS
+from jgrounding.io import asset  # the one resolver of the package's run-time files
 from jgrounding.library import primitives, responses, screening
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
@@ -34,7 +35,8 @@ FORMAT_VERSION = 1
 # The library's content version: bump when the design (primitives, code, screening, responses) changes.
 # Checkpoints record it with the library's sha256 and are refused on another library (training.checkpoints.restore_trained).
 LIBRARY_VERSION = "3.0-rest-start"
-ASSETS = Path(__file__).resolve().parents[2] / "assets"
+
+ASSETS = asset()  # jgrounding/assets
 DEFAULT_PATH = ASSETS / "library.npz"
 REGENERATE = "python -m tools.build_library"
 
@@ -311,7 +313,7 @@ def _split(arrays, mask) -> Split:
 
 
 def load_library(path: str | Path | None = None) -> Library:
-    """Load the demonstration library (``assets/library.npz`` by default) -> :class:`Library`."""
+    """Load the demonstration library (``jgrounding/assets/library.npz`` by default) -> :class:`Library`."""
     if path is not None and not isinstance(path, (str, Path)):
         raise TypeError(f"path must be a str or pathlib.Path to a library .npz, got {type(path).__name__}")
     path = Path(path or DEFAULT_PATH)

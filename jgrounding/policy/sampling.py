@@ -2,7 +2,7 @@
 
 One tuple gives ``(150, 4)`` (``num_samples == 1``) or ``(K, 150, 4)``; sequences of N tuples give
 ``(N, K, 150, 4)``. Loads the shipped pretrained Tuple + Spline + RF checkpoint
-(``assets/checkpoints/tuple_spline_rf``), or the few-step model ``assets/checkpoints/shipped.json`` names for
+(``jgrounding/assets/checkpoints/tuple_spline_rf``), or the few-step model ``jgrounding/assets/checkpoints/shipped.json`` names for
 the step count (e.g. MeanFlow), once per process, and runs its compiled sampler
 (:class:`jgrounding.policy.program.Model`: one program per (config, batch bucket, start mode), never traced
 again; outputs through the one safety gate; deterministic per key, whatever the bucket).
@@ -29,6 +29,7 @@ import numpy as np
 from jgrounding import safety
 from jgrounding.config import NUM_STEPS, SampleConfig
 from jgrounding.generators import methods
+from jgrounding.io import asset
 from jgrounding.policy.program import (
     BUCKETS,
     CLASSIC_RUNTIME,
@@ -70,9 +71,9 @@ __all__ = [
     "shipped_checkpoint",
 ]
 
-DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "assets" / "checkpoints" / "tuple_spline_rf"
+DEFAULT_CHECKPOINT = asset("checkpoints", "tuple_spline_rf")
 # Which shipped checkpoint serves which step count (python -m experiments.ship, from the training sweep):
-# {"default": <dir>, "few_step": [{"max_steps": S, "checkpoint": <dir>}, ...]} under assets/checkpoints.
+# {"default": <dir>, "few_step": [{"max_steps": S, "checkpoint": <dir>}, ...]} under jgrounding/assets/checkpoints.
 SHIPPED = DEFAULT_CHECKPOINT.parent / "shipped.json"
 
 

@@ -6,8 +6,8 @@ cue-list reducer: Eq. (3) with cosine prototypes; the baseline) and ``mllm`` (an
 Eq. (4), falling back to embedded). A configured MLLM also takes over embedded groundings below the
 confidence threshold. Apps do not drive the trunk on a non-confident grounding unless forced: they
 fall back to :data:`HOLD_STILL`.
-``python -m jgrounding.semantics --write-assets`` regenerates ``assets/intent_embeddings.npz`` and
-``assets/cue_prototypes.npz`` (the cue-list prototypes, so a fresh process does not embed them).
+``python -m jgrounding.semantics --write-assets`` regenerates ``jgrounding/assets/intent_embeddings.npz`` and
+``jgrounding/assets/cue_prototypes.npz`` (the cue-list prototypes, so a fresh process does not embed them).
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def main(argv=None) -> int:
     p.add_argument(
         "--write-assets",
         action="store_true",
-        help="regenerate assets/intent_embeddings.npz and assets/cue_prototypes.npz",
+        help="regenerate jgrounding/assets/intent_embeddings.npz and jgrounding/assets/cue_prototypes.npz",
     )
     p.add_argument("text", nargs="*")
     args = p.parse_args(argv)

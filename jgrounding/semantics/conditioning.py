@@ -2,21 +2,21 @@
 
 E is our JAX MiniLM sentence encoder (:mod:`jgrounding.semantics.encoder`); E_m is E of each intent's label and
 canonical description (:func:`intent_text`). The generators condition on E_m; it is shipped in
-``assets/intent_embeddings.npz`` so training and sampling read the same vectors (``python -m jgrounding.semantics
+``jgrounding/assets/intent_embeddings.npz`` so training and sampling read the same vectors (``python -m jgrounding.semantics
 --write-assets`` regenerates it). Text-conditioned variants (the ablations) condition on E of the texts themselves.
 """
 
 from __future__ import annotations
 
 import functools
-from pathlib import Path
 
 import numpy as np
 
 from jgrounding import vocabulary as voc
+from jgrounding.io import asset
 from jgrounding.vocabulary import INTENTS
 
-ASSET = Path(__file__).resolve().parents[2] / "assets" / "intent_embeddings.npz"
+ASSET = asset("intent_embeddings.npz")
 
 
 def embed(texts) -> np.ndarray:
@@ -38,7 +38,7 @@ def compute_intent_embeddings() -> np.ndarray:
 
 @functools.lru_cache(maxsize=1)
 def intent_embeddings() -> np.ndarray:
-    """The shipped, frozen E_m ``(16, 384)`` (assets/intent_embeddings.npz)."""
+    """The shipped, frozen E_m ``(16, 384)`` (jgrounding/assets/intent_embeddings.npz)."""
     if not ASSET.exists():
         raise FileNotFoundError(f"{ASSET} missing; regenerate with `python -m jgrounding.semantics --write-assets`")
     with np.load(ASSET) as f:

@@ -73,7 +73,7 @@ def compute_prototypes() -> dict:
 
 @functools.lru_cache(maxsize=1)
 def prototypes():
-    """Embeddings of spec C, loaded once from ``assets/cue_prototypes.npz`` (computed when the asset is missing or
+    """Embeddings of spec C, loaded once from ``jgrounding/assets/cue_prototypes.npz`` (computed when the asset is missing or
     was made from other cue texts): intent prototypes ``(K, 384)``, their owner ``(K,)``, intensities ``(4, 384)``."""
     if PROTOTYPES_ASSET.exists():
         with np.load(PROTOTYPES_ASSET) as f:

@@ -7,7 +7,7 @@
 - :data:`DEGREE`: degree words per intensity level (0 subtle .. 3 emphatic); :data:`INTENSIFIERS` push the degree
   word after them outward, :data:`NEGATION` before a strong word makes it subtle ("nothing big").
 
-Data only: changing a phrase of :data:`CUES` changes the prototypes' digest, so ``assets/cue_prototypes.npz`` is
+Data only: changing a phrase of :data:`CUES` changes the prototypes' digest, so ``jgrounding/assets/cue_prototypes.npz`` is
 recomputed until ``python -m jgrounding.semantics --write-assets`` rewrites it.
 """
 

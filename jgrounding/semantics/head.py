@@ -11,7 +11,7 @@ ordered thresholds theta_0 < theta_1 < theta_2, so "subtle" and "emphatic" are f
 
 The features are one of the named input pipelines of :mod:`jgrounding.semantics.features` (the config's
 ``inputs``; the shipped head's: ``tuned``, MiniLM with its top layers trained with the head). Parameters are a small pytree shipped in
-``assets/semantic_head.npz`` (``python -m tools.train_semantics`` regenerates it, deterministically).
+``jgrounding/assets/semantic_head.npz`` (``python -m tools.train_semantics`` regenerates it, deterministically).
 """
 
 from __future__ import annotations
@@ -27,10 +27,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jgrounding.io import asset
 from jgrounding.semantics.features import Inputs, inputs_named
 from jgrounding.vocabulary import NUM_INTENTS
 
-ASSET = Path(__file__).resolve().parents[2] / "assets" / "semantic_head.npz"
+ASSET = asset("semantic_head.npz")
 NUM_CLASSES = NUM_INTENTS + 1  # the 16 intents and "none" (last)
 NONE = NUM_INTENTS
 
@@ -398,8 +399,8 @@ class Head:
 
 @functools.lru_cache(maxsize=4)
 def load(path: str | None = None) -> Head:
-    """The shipped head (``assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it. A tuned
-    head made with the shipped nearest-neighbour table (``assets/semantic_knn.npz``, :func:`load_knn`) comes with
+    """The shipped head (``jgrounding/assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it. A tuned
+    head made with the shipped nearest-neighbour table (``jgrounding/assets/semantic_knn.npz``, :func:`load_knn`) comes with
     it, and with the confidence threshold refitted on dev with the vote."""
     path = Path(path or ASSET)
     if not path.exists():

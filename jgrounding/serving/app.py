@@ -23,6 +23,7 @@ import numpy as np
 
 from jgrounding import safety
 from jgrounding.config import NUM_STEPS, NUM_TENDONS
+from jgrounding.io import package_file
 from jgrounding.serving.protocol import (
     Limits,
     RequestError,
@@ -39,7 +40,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 log = logging.getLogger("jgrounding.serve")
 
-STATIC = Path(__file__).resolve().parents[1] / "apps" / "static"  # the page (package data of jgrounding.apps)
+STATIC = package_file("apps", "static")  # the page (package data of jgrounding.apps)
 
 
 # --- the model -----------------------------------------------------------------------------------------------

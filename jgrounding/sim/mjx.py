@@ -56,6 +56,20 @@ def _user_force(mx, d) -> jax.Array:
     return sum((mjx_support.contact_force_dim(mx, d, dim)[0][:, 0].sum() for dim in dims), jnp.zeros(()))
 
 
+def compiler_options() -> dict | None:
+    """XLA options every MJX program is compiled with (the one place): on the CPU, XLA's newer fusion emitters off.
+
+    From jaxlib 0.7.1 on, XLA:CPU generates fused loops with its "fusion emitters" by default, and for MuJoCo's
+    step (kinematics, tendons, collision, the constraint solver: thousands of small fusions) that more than
+    doubles the compile: ``jit(mjx.step)`` of the trunk compiled in 48 s with jax 0.7.0, 91 s with 0.7.1,
+    106 s with 0.10.2 + MJX 3.17, and 43 s with 0.10.2 with this option (docs/versions.md; the same 2-core
+    machine and load). jax 0.6.2 already defaults to it off. Other backends: no option.
+    """
+    if jax.default_backend() != "cpu":
+        return None
+    return {"xla_cpu_use_fusion_emitters": False}
+
+
 @functools.lru_cache(maxsize=8)
 def _compiled(contact: bool):
     m, mx, body_ids, tip_id = _model(contact)
@@ -70,12 +84,12 @@ def _compiled(contact: bool):
 
         # One flat scan over the T x SUBSTEPS physics steps, each control held SUBSTEPS steps, read at the end of
         # each control step. Not a scan of control steps around a scan of substeps: for the shipped model XLA traced
-        # and compiled that nesting in 13.6 + 37.0 s against 9.1 + 19.1 s flat (results/bench_trunk_compile.md),
+        # and compiled that nesting in 13.6 + 37.0 s against 9.1 + 19.1 s flat (results/bench_trunk_compile_jax0.6.2.md),
         # at the price of a slower small batch on the CPU (2 trunks: 6,315 against 7,874 physics steps/s).
         _, out = jax.lax.scan(physics_step, d0, jnp.repeat(u, measures.SUBSTEPS, axis=0))
         return jax.tree.map(lambda x: x[measures.SUBSTEPS - 1 :: measures.SUBSTEPS], out)
 
-    return jax.jit(jax.vmap(one))
+    return jax.jit(jax.vmap(one), compiler_options=compiler_options())
 
 
 def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:

@@ -34,7 +34,8 @@ contact can be measured. Contacts are explicit ``<pair>``s of the torso with the
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from jgrounding.io import asset
 
 NUM_SEGMENTS = 10
 TRUNK_LENGTH = 0.70  # m
@@ -58,7 +59,7 @@ USER_HEAD = (0.40, 0.0, 1.27, 0.11)  # x, y, z, radius
 # touching or not).
 CONTACT_SEGMENTS = 5
 
-DEFAULT_PATH = Path(__file__).resolve().parents[2] / "assets" / "trunk.xml"
+DEFAULT_PATH = asset("trunk.xml")
 
 
 def _taper(a: float, b: float, i: int, n: int) -> float:

@@ -20,7 +20,7 @@ _SENSOR_TOUCH = 3 * NUM_POINTS + 4
 
 @functools.lru_cache(maxsize=4)
 def load_model(path: str | None = None, contact: bool = True) -> mujoco.MjModel:
-    """The trunk MjModel: ``assets/trunk.xml`` by default; ``contact=False`` drops user contact."""
+    """The trunk MjModel: ``jgrounding/assets/trunk.xml`` by default; ``contact=False`` drops user contact."""
     if path is None and not contact:
         return mujoco.MjModel.from_xml_string(tm.build_xml(contact=False))
     path = Path(path or tm.DEFAULT_PATH)

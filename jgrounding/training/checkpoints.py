@@ -36,7 +36,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_
 
 # = jgrounding.library.DEFAULT_PATH, named here so that loading a checkpoint does not import the library
 # package (and the physics it screens with): jg.sample's first call stays short.
-DEFAULT_LIBRARY = Path(__file__).resolve().parents[2] / "assets" / "library.npz"
+DEFAULT_LIBRARY = io.asset("library.npz")
 
 FORMAT_VERSION = 1
 
@@ -215,7 +215,7 @@ def library_mismatch(path, meta: dict) -> str | None:
     """Why checkpoint ``path`` (its ``meta``) does not belong to the library it would be used with, or ``None``.
 
     The one rule: the library is the file the checkpoint recorded (``library_path``, when that file exists) or
-    else the shipped ``assets/library.npz``; its sha256 must be the one recorded. A checkpoint that recorded
+    else the shipped ``jgrounding/assets/library.npz``; its sha256 must be the one recorded. A checkpoint that recorded
     no library sha256 is not judged. :func:`restore_trained` refuses a mismatch unless
     ``allow_library_mismatch``."""
     digest = meta.get("library_sha256")

@@ -36,7 +36,11 @@ print("READS " + json.dumps({"shape": list(u.shape), "reads": reads}))
 def test_the_first_jg_sample_reads_each_file_once():
     env = {**os.environ, "PYTHONPATH": str(ROOT), "JAX_PLATFORMS": "cpu"}
     p = subprocess.run(
-        [sys.executable, "-c", PROBE, str(ROOT / "assets")], cwd=ROOT, env=env, capture_output=True, text=True
+        [sys.executable, "-c", PROBE, str(ROOT / "jgrounding" / "assets")],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
     )
     assert p.returncode == 0, p.stderr[-3000:]
     out = json.loads(next(line for line in p.stdout.splitlines() if line.startswith("READS "))[6:])
