@@ -175,6 +175,9 @@ def killed_client(url: str, seconds: float = 3.0) -> dict:
         "    print(t.tick, flush=True)\n"
     )
     victim = subprocess.Popen([sys.executable, "-c", code, url], stdout=subprocess.PIPE, text=True)
+    # Wait until the victim streams before this client starts: a fresh process on a loaded machine can take
+    # longer to import than the whole window, which left no ticks after the kill to count.
+    victim.stdout.readline()
     with Client(url) as c:
         s = c.stream(TEXTS[1])
         received, killed_at = 0, None
@@ -182,7 +185,6 @@ def killed_client(url: str, seconds: float = 3.0) -> dict:
         for tick in s:
             received += 1
             if killed_at is None and time.perf_counter() - t0 > seconds / 3:
-                victim.stdout.readline()  # it is streaming
                 victim.kill()
                 victim.wait(timeout=10)
                 killed_at = received

@@ -25,7 +25,7 @@ import os
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jax.sharding import AxisType, Mesh, NamedSharding, PartitionSpec
 
 AXIS = "data"  # the one mesh axis: batch elements (evaluation) or seeds (training)
 ENV = ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID")
@@ -93,7 +93,10 @@ def make_mesh(num_devices: int | None = None) -> Mesh:
         raise ValueError(f"num_devices must be an integer in 1..{len(devices)} (the devices JAX sees), got {n!r}")
     if n != len(devices) and jax.process_count() > 1:
         raise ValueError(f"a multi-host mesh must span all {len(devices)} devices, got num_devices={n}")
-    return jax.make_mesh((int(n),), (AXIS,), devices=devices[:n])
+    # Auto axes, named: jax >= 0.7 makes Explicit axes the default of jax.make_mesh, under which a gather over
+    # seed-split indices (the training batch's rows) must state its output sharding; jgrounding's programs let
+    # the compiler choose, as jax 0.6 did. Both stacks accept the keyword (docs/versions.md).
+    return jax.make_mesh((int(n),), (AXIS,), devices=devices[:n], axis_types=(AxisType.Auto,))
 
 
 def sharding(mesh: Mesh, *spec) -> NamedSharding:
