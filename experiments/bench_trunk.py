@@ -131,16 +131,25 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what[, "xla-default": without jg
 )
 
 
+COMPILE_TIMEOUT_S = 300  # a variant's process (import, trace, compile, 20 warm calls) is stopped after this
+
+
 def compile_probe() -> list[str]:
     lines = ["| MJX model variant | trace + lower (s) | XLA compile (s) | warm physics steps/s |", "|---|---|---|---|"]
     for label, *argv in COMPILE_VARIANTS:
-        out = subprocess.run(
-            [sys.executable, "-c", _PROBE, *argv],
-            capture_output=True,
-            text=True,
-            cwd=ROOT,
-            env={**os.environ, "PYTHONPATH": str(ROOT)},
-        )
+        try:
+            out = subprocess.run(
+                [sys.executable, "-c", _PROBE, *argv],
+                capture_output=True,
+                text=True,
+                cwd=ROOT,
+                env={**os.environ, "PYTHONPATH": str(ROOT)},
+                timeout=COMPILE_TIMEOUT_S,
+            )
+        except subprocess.TimeoutExpired:
+            lines.append(f"| {label} | stopped after {COMPILE_TIMEOUT_S} s in all | not finished | — |")
+            print(lines[-1], flush=True)
+            continue
         trace, comp, rate = (float(x) for x in out.stdout.split()[-3:]) if out.returncode == 0 else (float("nan"),) * 3
         lines.append(f"| {label} | {trace:.1f} | {comp:.1f} | {rate:,.0f} |")
         print(lines[-1], flush=True)
