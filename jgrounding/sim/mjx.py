@@ -63,7 +63,9 @@ def compiler_options() -> dict | None:
     step (kinematics, tendons, collision, the constraint solver: thousands of small fusions) that more than
     doubles the compile: ``jit(mjx.step)`` of the trunk compiled in 48 s with jax 0.7.0, 91 s with 0.7.1,
     106 s with 0.10.2 + MJX 3.17, and 43 s with 0.10.2 with this option (docs/versions.md; the same 2-core
-    machine and load). jax 0.6.2 already defaults to it off. Other backends: no option.
+    machine and load). jax 0.6.2 already defaults to it off. It does not cure everything: with contact pairs inside a
+    scan the newest stack still compiles far slower (docs/versions.md), which is one reason engine "auto" runs native
+    MuJoCo on the CPU. Other backends: no option.
     """
     if jax.default_backend() != "cpu":
         return None
