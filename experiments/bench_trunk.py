@@ -17,6 +17,7 @@ Writes results/bench_trunk.md.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -160,10 +161,10 @@ def compile_probe() -> list[str]:
 # cold in a venv per (jax, MuJoCo/MJX) stack, with XLA's defaults and with jgrounding.sim.mjx.compiler_options().
 BISECT_STACKS = (("0.6.2", "3.3.7"), ("0.7.0", "3.3.7"), ("0.7.1", "3.3.7"), ("0.10.2", "3.17.0"))
 _STEP_PROBE = """
-import sys, time, jax, mujoco
+import json, sys, time, jax, mujoco
 from mujoco import mjx
 m = mujoco.MjModel.from_xml_path(sys.argv[1])
-opts = {"xla_cpu_use_fusion_emitters": False} if sys.argv[2] == "off" else None
+opts = json.loads(sys.argv[2])
 mx = mjx.put_model(m); d = mjx.make_data(mx)
 t0 = time.perf_counter(); lowered = jax.jit(mjx.step, compiler_options=opts).lower(mx, d); t1 = time.perf_counter()
 lowered.compile(); t2 = time.perf_counter()
@@ -190,7 +191,14 @@ def bisect(stacks=BISECT_STACKS, venvs: Path = ROOT / "runs" / "bisect") -> list
             subprocess.run([str(py), "-m", "pip", "install", "-q", *pins], check=True)
         for emitters in ("default", "off"):
             out = subprocess.run(
-                [str(py), "-c", _STEP_PROBE, xml, emitters],
+                # The stack's venv lacks jgrounding: the options travel from compiler_options() as JSON.
+                [
+                    str(py),
+                    "-c",
+                    _STEP_PROBE,
+                    xml,
+                    json.dumps(trunk_mjx.compiler_options() if emitters == "off" else None),
+                ],
                 capture_output=True,
                 text=True,
                 env={**os.environ, "JAX_PLATFORMS": "cpu"},

@@ -80,6 +80,10 @@ class Policy:
     def hold(self, current, num_samples: int = 1) -> np.ndarray:
         return self.responder.hold(current, num_samples)
 
+    def act(self, key, decision, num_samples: int = 1, **kwargs):
+        """Hold still or sample, as ``decision`` says (:meth:`Responder.act`, the one place)."""
+        return self.responder.act(key, decision, num_samples, **kwargs)
+
     def sample(self, key, intent, intensity, num_samples=1, **kwargs) -> np.ndarray:
         return self.responder.trajectory(key, intent, intensity, num_samples, **kwargs)
 
@@ -159,23 +163,19 @@ class Server:
         decision, grounding, intent, intensity = await resolve(req, self.policy, self._call)
         hold = decision is not None and decision.hold
         t0 = time.perf_counter()
-        if hold:  # as the CLI does: the current command, held, in the shape a sample would have
-            u = self.policy.hold(req.current, req.num_samples)
-        else:
-            try:
+        options = dict(steps=req.steps, sampler=req.sampler, start_conditioned=req.start_conditioned)
+        key = jax.random.key(req.seed)
+        try:
+            if decision is not None:  # a text: the Responder carries out its decision, as the CLI's act does
+                u = (
+                    await self._call(self.policy.act, key, decision, req.num_samples, current=req.current, **options)
+                ).u
+            else:  # a named tuple: sampled as asked
                 u = await self._call(
-                    self.policy.sample,
-                    jax.random.key(req.seed),
-                    intent,
-                    intensity,
-                    req.num_samples,
-                    steps=req.steps,
-                    sampler=req.sampler,
-                    current=req.current,
-                    start_conditioned=req.start_conditioned,
+                    self.policy.sample, key, intent, intensity, req.num_samples, current=req.current, **options
                 )
-            except ValueError as e:  # e.g. an unknown sampler, a tuple the checkpoint lacks
-                raise RequestError(str(e)) from None
+        except ValueError as e:  # e.g. an unknown sampler, a tuple the checkpoint lacks
+            raise RequestError(str(e)) from None
         reply = {
             "u": np.asarray(u, np.float32),
             "grounding": grounding,
