@@ -68,6 +68,9 @@ SLOW = {
     "tests/serving/test_page.py": 6.5,  # headless Chromium
     "tests/sim/test_render_views.py": 5.3,  # OSMesa renders
     "tests/sim/test_trunk.py::test_contact_pruning_is_exact": 3.0,
+    "tests/study/test_study_browser.py": 46.0,  # headless Chromium, the model through the live stream
+    "tests/study/test_study_resume.py": 18.0,  # servers killed with SIGKILL and restarted
+    "tests/study/test_study_server.py::test_a_participant_goes_through_and_the_executed_commands_are_recorded": 11.2,
     "tests/test_config.py::test_a_checkpoint_without_sizes_loads_with_table_one_sizes_or_is_refused": 2.7,
     "tests/test_config.py::test_checkpoint_records_model_sizes_and_restores_them": 5.1,
     "tests/test_config.py::test_model_sizes_reach_the_network": 4.0,
@@ -121,13 +124,16 @@ FILE_SECONDS = {
     "tests/sim/test_trunk.py": 75.0,
     "tests/apps/test_cli_end_to_end.py": 104.5,
     "tests/library/test_library_metrics.py": 61.5,
+    "tests/study/test_study_browser.py": 50.6,
     "tests/serving/test_load_faults.py": 29.6,
     "tests/training/test_distributed.py": 29.4,
     "tests/training/test_resume.py": 22.9,
+    "tests/study/test_study_resume.py": 20.6,
     "tests/policy/test_sampling.py": 19.3,
     "tests/test_device_check.py": 17.6,
     "tests/library/test_own_library.py": 15.9,
     "tests/test_docs.py": 13.4,
+    "tests/study/test_study_server.py": 12.3,
     "tests/generators/test_few_step.py": 11.5,
     "tests/evaluation/test_distribution.py": 11.3,
     "tests/test_fuzz.py": 10.6,

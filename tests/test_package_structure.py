@@ -322,6 +322,7 @@ LAYERS = {
     "jgrounding.apps": 5,
     "jgrounding.serving": 5,  # the policy server; the client shares its wire codec (jgrounding.serving.wire)
     "jgrounding.serve": 5,
+    "jgrounding.study": 5,  # the user study (docs/study.md): its server is on jgrounding.serving
     "jgrounding.client": 5,
     "jgrounding.__main__": 5,
     "experiments": 5,
