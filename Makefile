@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install install-newest lint test test-fast test-newest test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library clean
+.PHONY: install install-newest lint test test-slow test-all test-fast test-newest test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,12 +25,23 @@ lint: install
 	$(VENV)/bin/ruff format --check .
 
 # Tests run on every core (pytest-xdist), a test file per worker at a time: module fixtures stay shared.
-# The wheel's own lane (tests/test_wheel.py, marked wheel) is test-wheel, which .ci/run runs after this.
+# `make test` is the everyday lane (<= 6 min on a fresh 2-core AVX2 machine, install and lint included): every test
+# not marked slow. `make test-slow` runs the tests marked slow (> ~20 s each on 2 cores: the end-to-end ablation, MJX
+# against native MuJoCo, byte-identical regeneration, the killed-and-resumed runs...); .ci/run runs both, then the
+# wheel's own lane (tests/test_wheel.py, marked wheel) and the newest stack. Nothing is left out of CI.
+PYTEST := $(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder
+
 test: install lint
-	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder --durations=15 -m "not wheel"
+	$(PYTEST) --durations=15 -m "not slow and not wheel"
+
+test-slow: install
+	$(PYTEST) --durations=15 -m "slow and not wheel"
+
+test-all: install lint
+	$(PYTEST) --durations=15 -m "not wheel"
 
 test-fast: install
-	$(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder -m "not slow and not wheel"
+	$(PYTEST) -m "not slow and not wheel"
 
 # The second lane: the whole suite on the newest jax / flax / optax / orbax / MuJoCo + MJX that resolve on this
 # Python (constraints-newest.txt, a frozen environment), in its own venv; the pinned lane above stays the default.
