@@ -1,7 +1,11 @@
 """Selective semantic grounding on the frozen evaluation sets: `python -m experiments.bench semantics`.
 
 Reads the TEST splits only here (never tuned on): ``assets/semantics_eval_v2/test.jsonl`` (five styles of motion
-texts and eight kinds of texts that call for no motion) and the plainly worded ``assets/semantics_eval/test.jsonl``.
+texts and eight kinds of texts that call for no motion), the plainly worded ``assets/semantics_eval/test.jsonl`` and
+the frozen blind bench of #34, ``assets/semantics_eval_v3/bench.jsonl`` (nine kinds of texts that call for no motion
+and contrast texts that reject one motion and choose another; this script is the only reader of that file). The v3
+bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
+the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`), so the rule's effect is read off one run.
 Three reducers run in the same process, each text grounded alone, warm (``semantics.warmup``: every token
 bucket compiled before timing):
 
@@ -33,7 +37,7 @@ import jax
 import numpy as np
 
 import jgrounding as jg
-from experiments.bench_sample import peak_gflops
+from experiments.bench_sample import cpu_model, peak_gflops
 from jgrounding import semantics
 from jgrounding.io import write_atomic
 from jgrounding.semantics import calibration, embedded, encoder, features
@@ -45,12 +49,14 @@ SPLITS = {
     "v2 test": ROOT / "assets" / "semantics_eval_v2" / "test.jsonl",
     "plain test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
 }
+BENCH_V3 = {"v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl"}  # accuracy only, not timed
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {
     "new": "trained head, structure-aware (jg.ground)",
     "old": "first trained head (#15)",
     "cues": "cue-list reducer (baseline)",
 }
+NO_RULE = "new, no rule"  # the shipped head without the no-motion decision (v3 bench, accuracy only)
 RESULTS = ROOT / "results"
 TIMING_PASSES = 3  # per reducer, in rotated order (see main)
 GOALS = {
@@ -90,6 +96,8 @@ def grounder(name: str):
         return jg.ground  # what users call, with its defaults
     if name == "cues":
         return lambda t: jg.ground(t, backend="cues")
+    if name == NO_RULE:
+        return lambda t: embedded.ground_embedded_many([t])[0]
     old = semantic_head.load(str(OLD_HEAD))
     return lambda t: embedded.ground_embedded_many([t], head=old)[0]
 
@@ -366,7 +374,7 @@ def confusion_figure(true, pred, path: Path, title: str) -> Path:
 
 
 def main(argv=None) -> int:
-    missing = [str(p) for p in [*SPLITS.values(), OLD_HEAD] if not p.exists()]
+    missing = [str(p) for p in [*SPLITS.values(), *BENCH_V3.values(), OLD_HEAD] if not p.exists()]
     if missing:
         print(f"missing: {', '.join(missing)}")
         return 1
@@ -432,6 +440,19 @@ def main(argv=None) -> int:
     peak, peak_text = peak_gflops()
     load_pinned = os.getloadavg()[0]
     pinned = one_core_latency([it["text"] for split in splits.values() for it in split])
+    v3 = {name: read_jsonl(path) for name, path in BENCH_V3.items()}  # the only read of the frozen v3 bench
+    for name in [*names, NO_RULE]:
+        fn = fns.get(name) or grounder(name)
+        for split, items in v3.items():
+            preds = run(items, fn)[0]
+            res[(name, split, "all")] = metrics(items, preds)
+            for s in sorted({it["style"] for it in items}):
+                group = [i for i, it in enumerate(items) if it["style"] == s]
+                res[(name, split, s)] = metrics([items[i] for i in group], [preds[i] for i in group])
+            if name == "new":
+                rule_held = {s: 0 for s in {it["style"] for it in items}}
+                for it, g in zip(items, preds):
+                    rule_held[it["style"]] += bool(g.no_motion)
     batch = [it["text"] for it in splits["v2 test"]]
     jg.ground_many(batch)  # compiles (or loads) the batch programs outside the timing, as warmup() does for one text
     batched = []
@@ -473,10 +494,33 @@ def main(argv=None) -> int:
                     f"| {_fmt(r['within_one'])} | {_fmt(r['ece'])} |"
                 )
         lines.append("")
+    for split, items in v3.items():
+        n_none = sum(it["intent"] == "none" for it in items)
+        lines += [
+            f"#### {split} (assets/semantics_eval_v3/bench.jsonl, {len(items)} texts: {n_none} call for no motion in "
+            f"nine kinds, {len(items) - n_none} contrast texts; written blind, frozen, read only here)",
+            "",
+            "Columns: n; intent = intent accuracy on the contrast texts; acted = share of them acted on; none held = "
+            "share of no-motion texts held; conf. wrong = acted on with the wrong intent (share of contrast texts); "
+            "rule = texts the no-motion rule held (`new` only). `new, no rule`: the shipped head without the rule.",
+            "",
+            "| reducer | style | n | intent | acted | none held | conf. wrong | rule |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        styles = ["all", *sorted({it["style"] for it in items})]
+        for name in ["new", NO_RULE, "old", "cues"]:
+            for s in styles:
+                r = res[(name, split, s)]
+                held = sum(rule_held.values()) if s == "all" else rule_held[s]
+                lines.append(
+                    f"| {name} | {'**all**' if s == 'all' else s} | {r['n']} | {_fmt(r['intent'])} | {_fmt(r['acted'])} "
+                    f"| {_fmt(r['none_held'])} | {_fmt(r['confident_wrong'])} | {held if name == 'new' else ''} |"
+                )
+        lines.append("")
     lines += [
         f"#### Latency (ms per response, each text alone, both test splits, {TIMING_PASSES} passes per reducer in "
-        f"rotated order; 2 CPU cores shared with other work: load average {load[0]:.1f} before and "
-        f"{os.getloadavg()[0]:.1f} after the timed runs)",
+        f"rotated order; {os.cpu_count()} CPU cores ({cpu_model()}) shared with other work: load average "
+        f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after the timed runs)",
         "",
         "| reducer | warm median | p99 | median of each pass |",
         "|---|---|---|---|",
@@ -548,12 +592,15 @@ def main(argv=None) -> int:
         f"jg.ground on the v2 test split (intent {res[('new', 'v2 test', 'all')]['intent']:.3f})",
     )
     lines += ["", f"Risk-coverage curves: {fig.relative_to(ROOT)}; confusion matrix: {conf_fig.relative_to(ROOT)}"]
+    print(f"CPU: {cpu_model()}")
     print("\n".join(lines))
     write_atomic(RESULTS / "bench_semantics.md", "\n".join(lines) + "\n")
     payload = {
         "metrics": {f"{n}|{sp}|{st}": v for (n, sp, st), v in res.items()},
         "latency": latency,
         "load_average": [load[0], os.getloadavg()[0]],
+        "cpu": cpu_model(),
+        "v3_rule_held": rule_held if v3 else {},
         "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
         "batched_ms_per_response": batched_ms,
         "breakdown": parts,

@@ -8,7 +8,8 @@ CLI, the interactive loop, the server and its 30 Hz stream:
    recorded): another intensity of a learned intent moves to the nearest learned one; an intent the checkpoint
    never learned is named and is not confident;
 3. the decision (:class:`Decision`): a grounding that is not confident holds still, with its reason, unless
-   forced; a tuple given directly always moves;
+   forced (among them a text the explicit no-motion rule holds, :mod:`jgrounding.semantics.nomotion`:
+   ``grounding.no_motion`` names why); a tuple given directly always moves;
 4. the trajectory: sampled by the public sampler (:func:`jgrounding.policy.sampling.sample`, the safety gate),
    or, when holding still, the current command held through the same gate (:meth:`Responder.hold`).
 
@@ -67,7 +68,7 @@ def snap(g: Grounding, tuples, checkpoint) -> tuple[Grounding, str | None]:
         f"({_names(tuples)}); its nearest is ({INTENTS[m]}, {INTENSITIES[z]}){score}"
     )
     confidence = float(scores[m]) if scores else 0.0
-    reason = f"asked for {asked}, which this checkpoint never learned"
+    reason = g.reason if g.no_motion else f"asked for {asked}, which this checkpoint never learned"
     snapped = dataclasses.replace(
         g, intent=INTENTS[m], intensity=INTENSITIES[z], confidence=confidence, confident=False, reason=reason
     )

@@ -4,8 +4,11 @@ Backends behind one :func:`ground`: ``embedded`` (offline, the default: a traine
 encoder, Eq. (3) with a learned mismatch and a confidence calibrated on the dev split), ``cues`` (the first,
 cue-list reducer: Eq. (3) with cosine prototypes; the baseline) and ``mllm`` (an OpenAI-compatible server,
 Eq. (4), falling back to embedded). A configured MLLM also takes over embedded groundings below the
-confidence threshold. Apps do not drive the trunk on a non-confident grounding unless forced: they
-fall back to :data:`HOLD_STILL`.
+confidence threshold. Every backend's grounding then passes the explicit no-motion decision
+(:mod:`jgrounding.semantics.nomotion`): a text that rules the motion out, orders the trunk to keep still, is
+addressed to someone else or only describes activity comes back held (``confident=False``, ``no_motion`` its kind,
+``reason`` why), whatever motion words it contains. Apps do not drive the trunk on a non-confident grounding unless
+forced: they fall back to :data:`HOLD_STILL`.
 ``python -m jgrounding.semantics --write-assets`` regenerates ``jgrounding/assets/intent_embeddings.npz`` and
 ``jgrounding/assets/cue_prototypes.npz`` (the cue-list prototypes, so a fresh process does not embed them).
 """
@@ -30,6 +33,7 @@ from jgrounding.semantics.cue_reducer import (  # noqa: F401  (re-exported)
     intent_scores,
 )
 from jgrounding.semantics.embedded import MAX_CHARS, ground_embedded, ground_embedded_many  # noqa: F401
+from jgrounding.semantics.nomotion import apply as _no_motion
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
 
@@ -51,29 +55,32 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
     ``backend``: ``"embedded"`` (offline: trained head over MiniLM, default), ``"cues"`` (the first
     cue-list reducer, a baseline) or ``"mllm"`` (OpenAI-compatible server; falls back to embedded with a
     logged reason). With ``escalate`` and an MLLM endpoint configured (``url=`` or ``JGROUNDING_MLLM_URL``),
-    an embedded grounding below the calibrated confidence threshold is asked of the MLLM instead.
+    an embedded grounding below the calibrated confidence threshold is asked of the MLLM instead. A text the
+    no-motion rule holds (:mod:`jgrounding.semantics.nomotion`) comes back ``confident=False`` with
+    ``no_motion`` set and its reason, from every backend, and is not escalated.
     Empty or non-string input raises; nonsense returns ``confident=False`` with a reason.
     """
     text = _checked(text)
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
     if backend == "cues":
-        return ground_cues(text)
+        return _no_motion(text, ground_cues(text))
     from jgrounding.semantics import mllm
 
     if backend == "mllm":
-        return mllm.ground_mllm(text, **mllm_options)
-    g = ground_embedded(text)
-    if g.confident or not escalate or not mllm_configured(**mllm_options):
+        return _no_motion(text, mllm.ground_mllm(text, **mllm_options))
+    g = _no_motion(text, ground_embedded(text))
+    if g.confident or g.no_motion or not escalate or not mllm_configured(**mllm_options):
         return g
-    return mllm.ground_mllm(text, fallback=g, **mllm_options)
+    return _no_motion(text, mllm.ground_mllm(text, fallback=g, **mllm_options))
 
 
 def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
     """:func:`ground` of many texts at once, offline (no escalation): one batched encoder pass for the
     ``embedded`` backend (the evaluation scripts use this), one text at a time for ``cues``.
 
-    Each text is checked as :func:`ground` checks it; the results are in the order given.
+    Each text is checked as :func:`ground` checks it and passes the same no-motion decision; the results are in
+    the order given.
     """
     if isinstance(texts, str):
         raise TypeError("ground_many takes a sequence of strings; use ground(text) for one text")
@@ -81,8 +88,8 @@ def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
         raise ValueError(f"unknown backend {backend!r} for ground_many; valid backends: embedded, cues")
     texts = [_checked(t) for t in texts]
     if backend == "cues":
-        return [ground_cues(t) for t in texts]
-    return ground_embedded_many(texts)
+        return [_no_motion(t, ground_cues(t)) for t in texts]
+    return [_no_motion(t, g) for t, g in zip(texts, ground_embedded_many(texts))]
 
 
 def warmup(max_tokens: int = 128) -> None:

@@ -174,6 +174,12 @@ def _quoted_spans(text: str) -> list[tuple[int, int]]:
     return sorted(spans)
 
 
+def spans(text: str) -> Structure:
+    """The rejected and quoted spans of one text without its flags (``flags`` empty): what the no-motion rule
+    (:mod:`jgrounding.semantics.nomotion`) reads, at a sixth of :func:`analyse`'s cost."""
+    return Structure(tuple(_rejected_spans(text)), tuple(_quoted_spans(text)), np.zeros(0, np.float32))
+
+
 def analyse(text: str) -> Structure:
     """Spans and flags of one text (plain rules, microseconds)."""
     rejected = _rejected_spans(text)

@@ -1,0 +1,58 @@
+"""Split the blind-written texts of issue #34 once, deterministically: ``python assets/semantics_eval_v3/split.py``.
+
+Reads ``nomotion_raw.jsonl`` (texts that call for no motion, by class) and ``contrast_raw.jsonl`` (a named
+motion rejected, another chosen), writes them as ``all.jsonl`` in the evaluation format
+(``{"id", "text", "intent", "intensity", "style"}``; ``intent`` ``"none"`` and ``intensity`` null for no
+motion) and splits it: strata are the class for no-motion texts and the chosen intent for contrast texts, ids
+sorted and shuffled with one ``random.Random(20261203)``; the first 40 % of each stratum (rounded) go to
+``bench.jsonl``, the frozen part that only ``python -m experiments.bench_semantics`` reads, the rest to
+``train.jsonl``, which training may read. Files keep the order of ``all.jsonl``.
+"""
+
+import json
+import random
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+BENCH_SHARE = 0.4
+
+
+def rows():
+    out = []
+    for line in (HERE / "nomotion_raw.jsonl").read_text().splitlines():
+        r = json.loads(line)
+        out.append({"id": r["id"], "text": r["text"], "intent": "none", "intensity": None, "style": r["class"]})
+    for line in (HERE / "contrast_raw.jsonl").read_text().splitlines():
+        r = json.loads(line)
+        out.append(
+            {
+                "id": r["id"],
+                "text": r["text"],
+                "intent": r["intent"],
+                "intensity": r["intensity"],
+                "style": "contrast",
+                "rejected": r["rejected"],
+            }
+        )
+    return out
+
+
+def main():
+    items = rows()
+    strata = {}
+    for r in items:
+        strata.setdefault(r["style"] if r["intent"] == "none" else r["intent"], []).append(r["id"])
+    rng = random.Random(20261203)
+    bench = set()
+    for key in sorted(strata):
+        ids = sorted(strata[key])
+        rng.shuffle(ids)
+        bench.update(ids[: round(BENCH_SHARE * len(ids))])
+    for name, keep in (("all", lambda r: True), ("bench", lambda r: r["id"] in bench), ("train", lambda r: r["id"] not in bench)):
+        text = "".join(json.dumps(r, ensure_ascii=False) + "\n" for r in items if keep(r))
+        (HERE / f"{name}.jsonl").write_text(text)
+    print(f"{len(items)} texts: {len(bench)} bench (frozen), {len(items) - len(bench)} train")
+
+
+if __name__ == "__main__":
+    main()
