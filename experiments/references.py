@@ -23,6 +23,7 @@ from pathlib import Path
 from jgrounding import library, load_library
 from jgrounding.evaluation import distribution, metrics
 from jgrounding.io import write_atomic
+from jgrounding.library import designs
 
 RESULTS = Path(__file__).resolve().parent.parent / "results" / "references.md"
 
@@ -109,9 +110,15 @@ def main(argv=None) -> int:
         f"- Paper-protocol brackets at tau = {metrics.TAU_RMS}: "
         + ("all within the SPEC §3 ranges." if not bad else "outside the SPEC §3 ranges: " + "; ".join(bad))
         + (
-            ". Library v3 starts every realization from rest and makes subtle motions small, so different intents "
-            "and far intensities come within tau of each other; the one-sample metric no longer separates them, "
-            "and the distribution metrics above carry the ranking."
+            (
+                ". Library v3 starts every realization from rest and makes subtle motions small, so different intents "
+                "and far intensities come within tau of each other; the one-sample metric no longer separates them, "
+                "and the distribution metrics above carry the ranking."
+                if designs.of_library(lib).version == 3
+                else f". At tau = 0.45 wrong intent is {b['wrong_intent'][0.45]:.3f} (SPEC: <= 0.20). In a few split "
+                "tuples of library v4 the mean of the training realizations lies within tau of the held-out one, so "
+                "the tuple mean's gap to the oracle stays short of 0.10; the distribution metrics above separate it."
+            )
             if bad and lib.evaluation is not None
             else ""
         )

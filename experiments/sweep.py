@@ -67,6 +67,28 @@ def sweep_tau(args) -> dict:
         "worst to best: " + " < ".join(methods.DISPLAY[m] for m in order) + ".",
     ]
     lines += [f"- τ = {t:.2f}: ordering {v} ({chain})" for t, (v, chain) in verdicts.items()]
+    # Each adjacent pair of the paper's ordering at each tau, with its test over seeds (Welch's t and a bootstrap
+    # interval must agree: distribution.compare): "holds" only where the better one is resolved higher.
+    from jgrounding.evaluation.distribution import compare
+
+    pairs = {}
+    head = "| pair (worse < better) | " + " | ".join(f"τ={t:.2f}" for t in taus) + " |"
+    lines += [
+        "",
+        "Adjacent pairs of the paper's ordering, per τ (Welch's p; holds = better resolved higher):",
+        "",
+        head,
+    ]
+    lines.append("|---" * (len(taus) + 1) + "|")
+    for lo, hi in zip(order, order[1:]):
+        cells, key = [], f"{lo} < {hi}"
+        pairs[key] = {}
+        for t in taus:
+            c = compare((rms[hi][:, :, 0] <= t).mean(1), (rms[lo][:, :, 0] <= t).mean(1))
+            verdict = {"higher": "holds", "lower": "reversed"}.get(c["verdict"], "not resolved")
+            pairs[key][str(t)] = {**c, "holds": verdict}
+            cells.append(f"{verdict} (p {c['p']:.2g})" if np.isfinite(c["p"]) else verdict)
+        lines.append(f"| {methods.DISPLAY[lo]} < {methods.DISPLAY[hi]} | " + " | ".join(cells) + " |")
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     for m in order:
         ax.errorbar(
@@ -86,6 +108,7 @@ def sweep_tau(args) -> dict:
     return {
         "table": {m: {str(t): v for t, v in d.items()} for m, d in table.items()},
         "ordering": {str(t): {"verdict": v, "chain": c} for t, (v, c) in verdicts.items()},
+        "pairs": pairs,
         "markdown": "\n".join(lines),
     }
 

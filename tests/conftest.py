@@ -57,7 +57,7 @@ SLOW = {
     "tests/policy/test_sampling.py::test_samples_do_not_depend_on_the_batch_bucket_or_chunking": 2.7,
     "tests/evaluation/test_distribution.py::test_reference_brackets_hold": 31.7,  # the refs fixture (k=8)
     "tests/evaluation/test_distribution.py::test_perfect_replay_ranks_above_hedge_and_collapse": 0.1,
-    "tests/evaluation/test_distribution.py::test_prec_at_tau_alone_cannot_tell_them_apart": 0.1,
+    "tests/evaluation/test_distribution.py::test_prec_at_tau_alone_cannot_tell_a_hedge_from_a_replay": 0.1,
     "tests/evaluation/test_latency.py::test_raw_conditioning_is_timed_through_the_core_and_says_so": 3.0,
     "tests/library/test_library_metrics.py::test_another_seed_gives_another_library": 22.9,
     "tests/library/test_library_metrics.py::test_regeneration_is_byte_identical": 38.9,

@@ -4,7 +4,7 @@ Grounding is one-to-many: a tuple has one or two valid *variants* and every real
 differs a little (onset, tempo, amplitude). One sample within tau of one held-out realization (Succ@tau)
 cannot tell a generator that covers both variants from one that hedges between them or collapses onto
 one. These metrics can. For samples ``x_k`` (k = 1..K) of tuple j and the tuple's evaluation
-realizations ``e_i`` (library v3: 16 per tuple, balanced across variants, never trained on), with
+realizations ``e_i`` (library v3 and v4: 16 per tuple, balanced across variants, never trained on), with
 ``d_k = min_i RMS(x_k, e_i)`` and ``nn_k`` the nearest one:
 
 - **Prec@tau** = mean_k [d_k <= tau] (tau = 0.35), **Prec@r** = mean_k [d_k <= r].
@@ -119,12 +119,12 @@ class Scores:
     r: float
     tau: float
     per_tuple: dict  # name -> (N,) float array (NaN where undefined: mode metrics of single-variant tuples)
-    split: np.ndarray  # (N,) bool: the tuple has two variants in the evaluation set
+    split: np.ndarray  # (N,) bool: the tuple has two or more variants in the evaluation set
     frechet: float
 
     def mean(self, name: str, split_only: bool = False) -> float:
         """Mean over tuples (the mode metrics are defined on split tuples only); ``split_only``: over the
-        tuples with two variants."""
+        tuples with two or more variants."""
         x = self.per_tuple[name][self.split] if split_only else self.per_tuple[name]
         return float(np.nanmean(x)) if np.isfinite(x).any() else float("nan")
 
@@ -156,7 +156,7 @@ def score(
     groups = _tuples(ev)
     d_all = rms_matrix(samples.reshape(n * k, *samples.shape[2:]), ev.u).reshape(n, k, len(ev.u))
     nearest = d_all.argmin(axis=2)  # (N, K) over the whole evaluation set
-    out = {name: np.full(n, np.nan) for name in HEADLINE}
+    out = {name: np.full(n, np.nan) for name in (*HEADLINE, "modes_covered")}
     split = np.zeros(n, bool)
     demo_spread = {}
     for j in range(n):
@@ -177,6 +177,7 @@ def score(
             counts = np.array([(assigned == v).sum() for v in variants], float)
             fair = k / len(variants)
             out["mode_cov"][j] = np.mean(counts >= max(1.0, COVER_SHARE * fair))
+            out["modes_covered"][j] = np.sum(counts >= max(1.0, COVER_SHARE * fair))  # how many variants
             p = counts / counts.sum() if counts.sum() else np.zeros_like(counts)
             ent = -np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0))
             out["mode_bal"][j] = ent / np.log(len(variants))
@@ -239,7 +240,7 @@ REFERENCES = {
 BRACKETS = {  # name -> metric -> (low, high); the hedge is judged on the split tuples, where it is a hedge
     "fresh_replay": {"prec_r": (0.95, 1.0), "mode_cov": (0.95, 1.0)},
     "hedge": {"prec_r_split": (0.0, 0.10), "mode_cov": (0.0, 0.10)},
-    "collapse": {"mode_cov": (0.45, 0.55)},
+    "collapse": {"modes_covered": (0.9, 1.1)},  # one variant of two or three (mode_cov 0.5 of two; v3: 0.45-0.55)
     "other_intent": {"intent_ret": (0.0, 0.05)},
     "adjacent_intensity": {"intensity_ret": (0.0, 0.20)},
 }
@@ -247,14 +248,18 @@ BRACKETS = {  # name -> metric -> (low, high); the hedge is judged on the split 
 
 def reference_samples(lib, k: int = 30, seed: int = 2) -> dict[str, np.ndarray]:
     """``name -> (64, k, T, C)`` samples of every reference row for the 64 tuples in (intent, intensity) order."""
-    from jgrounding.library import fresh_realizations, primitives
+    import functools
+
+    from jgrounding.library import BuildConfig, designs
+    from jgrounding.library import fresh_realizations as fresh_of
 
     ev = lib.evaluation
     if ev is None:
         raise ValueError("this library file has no evaluation set; regenerate it with `python -m tools.build_library`")
+    design = designs.of_library(lib)  # the references are drawn from the design the library was built with
+    fresh_realizations = functools.partial(fresh_of, config=BuildConfig(version=design.version))
     tuples = sorted(_tuples(ev))
-    split = {m: bool(primitives.SPLIT[m]) for m, _ in tuples}
-    both = {t: (np.arange(k) % 2 if split[t[0]] else np.zeros(k, int)) for t in tuples}
+    both = {t: design.eval_variants(t[0], k) for t in tuples}  # every variant, balanced
     fresh = fresh_realizations(both, seed)
     collapse = fresh_realizations({t: np.zeros(k, int) for t in tuples}, seed + 1)
     groups = _tuples(ev)

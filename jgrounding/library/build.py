@@ -28,13 +28,14 @@ from jgrounding import safety
 from jgrounding.actuation import splines
 from jgrounding.config import NUM_CONTROLS
 from jgrounding.io import asset  # the one resolver of the package's run-time files
-from jgrounding.library import primitives, responses, screening
+from jgrounding.library import designs, primitives, responses, screening
+from jgrounding.library.primitives import Variation
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
 FORMAT_VERSION = 1
-# The library's content version: bump when the design (primitives, code, screening, responses) changes.
+# The shipped library's content version (jgrounding.library.designs; bump it there when a design changes).
 # Checkpoints record it with the library's sha256 and are refused on another library (training.checkpoints.restore_trained).
-LIBRARY_VERSION = "3.0-rest-start"
+LIBRARY_VERSION = designs.LIBRARY_VERSIONS[designs.DEFAULT_VERSION]
 
 ASSETS = asset()  # jgrounding/assets
 DEFAULT_PATH = ASSETS / "library.npz"
@@ -53,6 +54,8 @@ class BuildConfig:
     # with another seed, never trained on; the distribution metrics score samples against it.
     eval_realizations: int = 16
     eval_seed_offset: int = 1000
+    # The design (jgrounding.library.designs): 4, the shipped library, or 3 (python -m tools.build_library --version 3).
+    version: int = designs.DEFAULT_VERSION
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,7 +96,7 @@ class Library:
     evaluation: EvalSet | None = None  # None for a library file without one (an imported library)
 
 
-def _reduce(
+def reduce_candidates(
     candidates: np.ndarray, num_controls: int, returns: np.ndarray | None = None, pin_start: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eq. (ci) and R(c) on the spline basis, in float64 NumPy, then rounded once to float32.
@@ -146,9 +149,18 @@ def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bo
         todo = [k for k in need if len(found[k]) < need[k]]
         if not todo:
             break
-        cand = np.stack([primitives.candidate(rngs[k], k[0], k[1], k[2]) for k in todo for _ in range(per_round)])
+        design = None if config.version == 3 else designs.get(config.version)  # v3: its own code, byte for byte
+        cand = np.stack(
+            [
+                primitives.candidate(
+                    rngs[k], k[0], k[1], k[2], design.variation if design else Variation(), design=design
+                )
+                for k in todo
+                for _ in range(per_round)
+            ]
+        )
         keys = np.repeat(np.array(todo), per_round, axis=0)
-        controls, raw, u = _reduce(cand, config.num_controls, primitives.RETURNS_MASK[keys[:, 0]])
+        controls, raw, u = reduce_candidates(cand, config.num_controls, primitives.RETURNS_MASK[keys[:, 0]])
         checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1])
         for c in screening.CHECKS:
             per_check[c] += int(checks[c].sum())
@@ -188,9 +200,10 @@ def fresh_realizations(
 def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[dict, dict]:
     """Generate, reduce and screen; returns (arrays, card). Deterministic in ``config.seed``."""
     keep = {k: [] for k in ("u", "controls", "intent", "intensity", "realization", "variant", "texts")}
-    # One-to-many: a tuple's realizations split evenly between its variants (primitives.variants_of).
+    design = designs.get(config.version)
+    # One-to-many: how a tuple's realizations divide among its variants (designs.Design.train_variants).
     plan = {
-        (m, z): primitives.variants_of(m, config.realizations)
+        (m, z): design.train_variants(m, z, config.realizations)
         for m in range(NUM_INTENTS)
         for z in range(NUM_INTENSITIES)
     }
@@ -200,7 +213,10 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
     for m in range(NUM_INTENTS):
         for z in range(NUM_INTENSITIES):
             text_rng = np.random.default_rng([config.seed, m, z, 7])
-            held = int(split_rng.integers(config.realizations))
+            if config.version == 3:
+                held = int(split_rng.integers(config.realizations))
+            else:  # v4: a three-variant tuple holds out one of its doubled variant's realizations
+                held = int(split_rng.choice(design.holdable(m, plan[(m, z)])))
             taken = {int(v): iter(found[(m, z, int(v))]) for v in np.unique(plan[(m, z)])}
             for r, v in enumerate(plan[(m, z)]):
                 c, u = next(taken[int(v)])
@@ -216,7 +232,7 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
                 heldout.append(r == held)
     # The evaluation set: the same generator and screening, another seed, balanced across variants.
     eval_plan = {
-        (m, z): primitives.variants_of(m, config.eval_realizations)
+        (m, z): design.eval_variants(m, config.eval_realizations)
         for m in range(NUM_INTENTS)
         for z in range(NUM_INTENSITIES)
     }
@@ -245,11 +261,11 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         "eval_intensity": np.asarray(ev["intensity"], np.int32),
         "eval_variant": np.asarray(ev["variant"], np.int32),
     }
-    arrays["library_version"] = np.asarray(LIBRARY_VERSION)
+    arrays["library_version"] = np.asarray(design.library_version)
     arrays["content_sha256"] = np.asarray(content_hash(arrays))
     card = {
         "format_version": FORMAT_VERSION,
-        "library_version": LIBRARY_VERSION,
+        "library_version": design.library_version,
         "content_sha256": str(arrays["content_sha256"]),
         "config": dataclasses.asdict(config),
         "num_records": int(len(arrays["u"])),

@@ -173,11 +173,16 @@ def candidate(
     variant: int = 0,
     variation: Variation = Variation(),
     num_steps: int = NUM_STEPS,
+    design=None,
 ) -> np.ndarray:
-    """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``: starts at rest."""
-    poses = key_poses(intent, variant, intensity)
+    """One candidate trajectory ``(T, 4)`` of the tuple's ``variant``, drawn with ``rng``: starts at rest.
+
+    ``design``: a :class:`jgrounding.library.designs.Design` whose key poses to play (None: this module's v3
+    code). The variation and its random draws are the same for every design."""
+    poses = key_poses(intent, variant, intensity) if design is None else design.key_poses(intent, variant, intensity)
+    one_form = not SPLIT[intent] if design is None else design.one_form(intent)
     moving = slice(1, None if not RETURNS_MASK[intent] else -1)  # rest stays rest
-    if not SPLIT[intent]:
+    if one_form:
         poses[1 if rng.random() < 0.5 else 3, moving] += variation.tilt * rng.uniform(0.6, 1.0)
     poses[:, moving] = np.clip(poses[:, moving] + rng.normal(0.0, variation.jitter, poses[:, moving].shape), 0, 1)
     # Onset: the motion starts up to ``onset`` of the first key interval late. Tempo: the pace of the

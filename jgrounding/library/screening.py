@@ -39,7 +39,7 @@ def _respectful(f, z):
     return (z >= 2) | (f["min_user_distance"] > 0.05)
 
 
-# Library v3 (every realization starts from rest and has three key poses after it) checks each intent's
+# Libraries v3 and v4 (every realization starts from rest and has three key poses after it) check each intent's
 # kinematic signature (SPEC §2) on the simulated tip path: the plane an oscillation lies in, where a
 # motion ends, how high it rises.
 RULES = {

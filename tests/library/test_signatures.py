@@ -1,4 +1,4 @@
-"""Library v3 looks like recordings of a real trunk: it starts from rest, returns or holds, and each intent's
+"""The library (v3 and v4) looks like recordings of a real trunk: it starts from rest, returns or holds, and each intent's
 simulated motion shows its description (SPEC §2-3), checked as kinematic signatures over the whole library."""
 
 import numpy as np
@@ -72,12 +72,14 @@ def test_playful_swing_and_celebrating_swing_side_to_side(recorded):
 
 
 def test_intensity_grows_the_motion(recorded):
+    # Intensity is reach and tempo (SPEC §2): the tip's path grows from subtle to emphatic for every intent but
+    # resting (minimal motion at every intensity). Library v4's subtle gestures may pull as hard as emphatic ones
+    # (later and slower, issue #38), so the mean pull is no longer the measure; v3 also asserted it.
     u, m, z, f = recorded
     path = f["lateral_excursion"] + f["sagittal_excursion"] + f["vertical_excursion"]
-    pull = np.abs(u).mean(axis=(1, 2))
     for k, name in enumerate(INTENTS):
-        if name == "resting":  # relaxes and droops: minimal motion at every intensity
+        if name == "resting":
             continue
         sel = m == k
-        assert pull[sel & (z == 3)].mean() > pull[sel & (z == 0)].mean(), name
-        assert path[sel & (z == 3)].mean() > 0.8 * path[sel & (z == 0)].mean(), name
+        assert path[sel & (z == 3)].mean() > path[sel & (z == 0)].mean(), name
+        assert f["peak_tip_speed"][sel & (z == 3)].mean() > f["peak_tip_speed"][sel & (z == 0)].mean(), name
