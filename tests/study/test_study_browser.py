@@ -6,68 +6,28 @@ stream. Chromium options as in tests/serving/test_page.py."""
 from __future__ import annotations
 
 import dataclasses
-import shutil
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from browser import headless_chromium, wait_for
 
 SQLALCHEMY = pytest.importorskip(
     "sqlalchemy", reason="the study's database needs sqlalchemy (requirements.txt pins it)"
 )
 from jgrounding.study import Design, Episode, Store  # noqa: E402 (after the skip: the store imports sqlalchemy)
 
-CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
-FLAGS = (
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-dev-shm-usage",
-    "--disable-background-timer-throttling",
-    "--disable-renderer-backgrounding",
-    "--window-size=1240,1000",
-)
 pytestmark = pytest.mark.slow  # the model, Chromium and five 5 s episodes: about 60 s on 2 cores
 
 
 @pytest.fixture(scope="module")
 def browser():
-    import os
-
-    if not (Path(CHROMIUM).exists() and Path(DRIVER).exists()):
-        if os.environ.get("CI"):
-            pytest.fail("chromium and chromium-driver are missing; scripts/install_system.sh installs them")
-        pytest.skip("chromium / chromium-driver not installed (apt-get install -y chromium chromium-driver)")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    profile = tempfile.mkdtemp(prefix="jg-chromium-")
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in (*FLAGS, f"--user-data-dir={profile}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(DRIVER), options=options)
-    driver.set_page_load_timeout(60)
-    yield driver
-    driver.quit()
-    shutil.rmtree(profile, ignore_errors=True)
-
-
-def wait_for(driver, script: str, timeout: float = 30.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = driver.execute_script(script)
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError(f"timed out waiting for: {script}")
+    yield from headless_chromium(
+        (
+            "--disable-background-timer-throttling",
+            "--disable-renderer-backgrounding",
+        )
+    )
 
 
 def test_simulated_participants_run_a_study_through_the_pages(browser, tmp_path):
