@@ -66,19 +66,28 @@ def cpu_model(cpuinfo: str = "/proc/cpuinfo") -> str:
         return platform.processor() or platform.machine()
 
 
-def peak_gflops(cpuinfo: str = "/proc/cpuinfo") -> tuple[float, str]:
-    """(peak fp32 GFLOP/s, how it was computed): cores x clock x FLOP per cycle, where an FMA unit on
-    512-bit vectors (avx512f) counts 64 fp32 FLOP per cycle, on 256-bit (avx2 + fma) 32, else 8 (SSE)."""
-    flags, mhz = set(), []
+def _cpu_flags(cpuinfo: str) -> set[str]:
+    flags = set()
     for line in Path(cpuinfo).read_text().splitlines():
         if line.startswith("flags"):
             flags |= set(line.split(":", 1)[1].split())
-        elif line.startswith("cpu MHz"):
-            mhz.append(float(line.split(":", 1)[1]))
+    return flags
+
+
+def cpu_isa(cpuinfo: str = "/proc/cpuinfo") -> str:
+    """The widest vector unit the CPU reports: ``avx512f``, ``avx2+fma`` or ``sse`` (XLA_FLAGS may limit what XLA
+    uses; this reads /proc/cpuinfo)."""
+    flags = _cpu_flags(cpuinfo)
+    return "avx512f" if "avx512f" in flags else "avx2+fma" if {"avx2", "fma"} <= flags else "sse"
+
+
+def peak_gflops(cpuinfo: str = "/proc/cpuinfo") -> tuple[float, str]:
+    """(peak fp32 GFLOP/s, how it was computed): cores x clock x FLOP per cycle, where an FMA unit on
+    512-bit vectors (avx512f) counts 64 fp32 FLOP per cycle, on 256-bit (avx2 + fma) 32, else 8 (SSE)."""
+    mhz = [float(x.split(":", 1)[1]) for x in Path(cpuinfo).read_text().splitlines() if x.startswith("cpu MHz")]
     cores = len(os.sched_getaffinity(0))
-    per_cycle, isa = (
-        (64, "avx512f") if "avx512f" in flags else (32, "avx2+fma") if {"avx2", "fma"} <= flags else (8, "sse")
-    )
+    isa = cpu_isa(cpuinfo)
+    per_cycle = {"avx512f": 64, "avx2+fma": 32}.get(isa, 8)
     ghz = max(mhz) / 1e3 if mhz else float("nan")
     peak = cores * ghz * per_cycle
     return peak, f"{cores} cores x {ghz:.2f} GHz x {per_cycle} fp32 FLOP/cycle ({isa}) = {peak:.0f} GFLOP/s"

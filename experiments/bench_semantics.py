@@ -37,7 +37,7 @@ import jax
 import numpy as np
 
 import jgrounding as jg
-from experiments.bench_sample import cpu_model, peak_gflops
+from experiments.bench_sample import cpu_isa, cpu_model, peak_gflops
 from jgrounding import semantics
 from jgrounding.io import write_atomic
 from jgrounding.semantics import calibration, embedded, encoder, features
@@ -519,7 +519,7 @@ def main(argv=None) -> int:
         lines.append("")
     lines += [
         f"#### Latency (ms per response, each text alone, both test splits, {TIMING_PASSES} passes per reducer in "
-        f"rotated order; {os.cpu_count()} CPU cores ({cpu_model()}) shared with other work: load average "
+        f"rotated order; {os.cpu_count()} CPU cores ({cpu_model()}, {cpu_isa()}) shared with other work: load average "
         f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after the timed runs)",
         "",
         "| reducer | warm median | p99 | median of each pass |",

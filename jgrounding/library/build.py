@@ -29,7 +29,6 @@ from jgrounding.actuation import splines
 from jgrounding.config import NUM_CONTROLS
 from jgrounding.io import asset  # the one resolver of the package's run-time files
 from jgrounding.library import designs, primitives, responses, screening
-from jgrounding.library.primitives import Variation
 from jgrounding.vocabulary import INTENSITIES, INTENTS, NUM_INTENSITIES, NUM_INTENTS
 
 FORMAT_VERSION = 1
@@ -136,6 +135,7 @@ def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bo
     """
     from tqdm import tqdm
 
+    design = designs.get(config.version)  # v3's design plays primitives' own code: the same candidates
     tried = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     accepted = np.zeros((NUM_INTENTS, NUM_INTENSITIES), int)
     per_check = {c: 0 for c in screening.CHECKS}
@@ -149,12 +149,9 @@ def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bo
         todo = [k for k in need if len(found[k]) < need[k]]
         if not todo:
             break
-        design = None if config.version == 3 else designs.get(config.version)  # v3: its own code, byte for byte
         cand = np.stack(
             [
-                primitives.candidate(
-                    rngs[k], k[0], k[1], k[2], design.variation if design else Variation(), design=design
-                )
+                primitives.candidate(rngs[k], k[0], k[1], k[2], design.variation, design=design)
                 for k in todo
                 for _ in range(per_round)
             ]

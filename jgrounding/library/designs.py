@@ -59,8 +59,8 @@ class Design:
     def train_variants(self, intent: int, intensity: int, realizations: int) -> np.ndarray:
         """The variant of each of a tuple's ``realizations`` library records (before the hold-out)."""
         v = int(self.num_variants[intent])
-        if self.version == 3 or v < 3:
-            return primitives.variants_of(intent, realizations) if self.version == 3 else np.arange(realizations) % v
+        if v < 3:  # one variant, or two alternating (v3's primitives.variants_of is the same rule)
+            return np.arange(realizations) % v
         double = (intensity + intent) % v  # the variant with two realizations rotates with the intensity
         rest = [k for k in range(v) if k != double]
         order = [double, *rest, double]  # 2 + 1 + 1 for four realizations
@@ -68,8 +68,6 @@ class Design:
 
     def eval_variants(self, intent: int, realizations: int) -> np.ndarray:
         """The evaluation set's variants of a tuple: balanced (every variant as often, within one)."""
-        if self.version == 3:
-            return primitives.variants_of(intent, realizations)
         return np.arange(realizations) % int(self.num_variants[intent])
 
     def holdable(self, intent: int, variants: np.ndarray) -> np.ndarray:
