@@ -47,6 +47,9 @@ from jgrounding.evaluation import physics as trunk_eval
 from jgrounding.generators import methods
 from jgrounding.training import checkpoints, distributed, trainer
 
+TIME_ROUNDS = 10  # Table II's Time: interleaved rounds (latency.interleaved_ms), each ...
+TIME_REPS = 40  # ... TIME_REPS single-trajectory calls per method, cycling through the held-out tuples
+
 
 def mean_std(x) -> tuple[float, float]:
     """Mean and sample std over seeds (ddof = 1)."""
@@ -100,8 +103,8 @@ def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     r = np.asarray(metrics.rms(u, ho.u[None, :, None]))  # (S, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)  # (S,)
     cov = coverage(u, lib)  # (S,)
-    lat_ms = latency.latency_ms(trained, ho.intent, ho.intensity, k_lat, config, cond=cond_eval)
-    return u, r, div, cov, lat_ms, u.shape[0] * u.shape[1] * u.shape[2] / batch_s
+    calls = latency.latency_calls(trained, ho.intent, ho.intensity, k_lat, config, cond=cond_eval, reps=TIME_REPS)
+    return u, r, div, cov, calls, u.shape[0] * u.shape[1] * u.shape[2] / batch_s
 
 
 def coverage(u, lib) -> np.ndarray:
@@ -245,7 +248,7 @@ def run(cfg: Config, lib=None) -> AblationResult:
     ev = lib.evaluation
     radius = distribution.radius(ev) if ev is not None else None
     key = jax.random.key(2026)
-    trained_by = {}
+    trained_by, time_calls = {}, {}
     for method in todo:
         entry = methods.spec(method)
         t0 = time.perf_counter()
@@ -279,7 +282,7 @@ def run(cfg: Config, lib=None) -> AblationResult:
         )
         cond_eval = entry.condition.conditions(lib.heldout, intent_emb, heldout_text)
         t_eval = time.perf_counter()
-        u, r, div, cov, lat_ms, throughput = evaluate(
+        u, r, div, cov, time_calls[method], throughput = evaluate(
             method, trained, lib, cfg, cond_eval, jax.random.fold_in(key, len(rows)), mesh
         )
         timing["evaluate_s"] += time.perf_counter() - t_eval
@@ -298,7 +301,7 @@ def run(cfg: Config, lib=None) -> AblationResult:
             rms=mean_std(r.mean(axis=(1, 2))),
             diversity=mean_std(div),
             coverage=mean_std(cov),
-            time_ms=float(lat_ms),
+            time_ms=float("nan"),  # measured below, every method in alternation
             time_measures=latency.measures(trained),
             throughput_per_s=float(throughput),
             train_s=train_s,
@@ -309,10 +312,19 @@ def run(cfg: Config, lib=None) -> AblationResult:
         per_sample[method] = r
         print(
             f"{DISPLAY[method]:24s} success {row.success[0]:.3f} ± {row.success[1]:.3f}"
-            f"  div {row.diversity[0]:.3f}  time {lat_ms:.3f} ms  train {train_s:.0f} s  feasible "
+            f"  div {row.diversity[0]:.3f}  train {train_s:.0f} s  feasible "
             f"{phys.feasible[0]:.4f} over {phys.samples} simulated samples ({phys.seconds:.0f} s)",
             flush=True,
         )
+    t_time = time.perf_counter()  # Table II's Time: the methods in alternation, so drift falls on all alike
+    rounds = latency.interleaved_ms(time_calls, rounds=TIME_ROUNDS)
+    for method, ms in rounds.items():
+        med, lo, hi = latency.median_interval(ms)
+        rows[method] = dataclasses.replace(
+            rows[method], time_ms=med, time_rounds_ms=tuple(float(x) for x in ms), time_interval_ms=(lo, hi)
+        )
+        print(f"{DISPLAY[method]:24s} time {med:.3f} ms [{lo:.3f}, {hi:.3f}]", flush=True)
+    timing["latency_s"] = time.perf_counter() - t_time
     public, dist_refs = {}, {}
     if ev is not None and ev_cfg.library is None:  # the shipped model through jg.sample, as users call it
         t_pub = time.perf_counter()

@@ -63,7 +63,7 @@ def markdown(res: AblationResult) -> str:
         paper = f"{p[0]:.3f} / {p[1]:.3f} / {p[2]:.2f}" if p else "–"
         lines.append(
             f"| {DISPLAY[m]} | {fmt(r.success)} | {fmt(r.success_all_samples)} | "
-            f"{fmt(r.diversity)} | {fmt(r.coverage)} | {r.time_ms:.3f} | {fmt(ph.shape_rms_m)} | "
+            f"{fmt(r.diversity)} | {fmt(r.coverage)} | {time_cell(r)} | {fmt(ph.shape_rms_m)} | "
             f"{fmt(ph.shape_success)} | {fmt(ph.shape_diversity_m)} | {fmt4(ph.feasible)} | {paper} |"
         )
     tau = float(cfg.eval.tau)
@@ -92,10 +92,9 @@ def markdown(res: AblationResult) -> str:
         "Succ.: one sample per held-out tuple within τ of its reference (the paper's protocol); "
         "Succ. (all samples): over all K_div samples; Div.: mean pairwise RMS of K_div samples; "
         "Coverage RMS: mean over a tuple's 4 library realizations of the RMS to the nearest of the K_div "
-        "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory, "
-        "median over the held-out tuples (tuple → u, spline reconstruction and safety gate included), "
-        "through jg.sample's public path; for the raw-text method through the compiled core (jg.sample "
-        "takes tuples). ",
+        "samples (lower = more of the demonstrated variants reached); Time: warm single trajectory "
+        "(tuple → u, spline reconstruction and safety gate included) through jg.sample's public path, for "
+        "the raw-text method through the compiled core (jg.sample takes tuples); " + time_method(res) + " ",
     ]
     if tol is None:
         lines[-1] += (
@@ -215,6 +214,48 @@ def distribution_markdown(res: AblationResult) -> str:
     return "\n".join(lines) + "\n"
 
 
+def time_method(res: AblationResult) -> str:
+    """How the run measured Table II's Time (interleaved since issue #37)."""
+    rounds = max((len(r.time_rounds_ms) for r in res.rows.values()), default=0)
+    if not rounds:
+        return "each method timed on its own, one after the other: median over calls (no interval)."
+    return (
+        f"every method timed in alternation, in a fresh order in each of {rounds} rounds of single calls "
+        "cycling through the held-out tuples; the median of the per-round medians, in brackets the "
+        "distribution-free 95% interval of that median."
+    )
+
+
+def time_cell(r) -> str:
+    """Table II's Time cell: the median and its interval (a run before issue #37: the median alone)."""
+    if len(r.time_interval_ms) == 2:
+        return f"{r.time_ms:.3f} [{r.time_interval_ms[0]:.3f}, {r.time_interval_ms[1]:.3f}]"
+    return f"{r.time_ms:.3f}"
+
+
+def time_finding(rf, ddpm) -> str:
+    """The "RF vs DDPM time" sentence, decided by the paired sign test over the interleaved rounds
+    (:func:`jgrounding.evaluation.latency.compare_ms`), never by the two medians alone."""
+    from jgrounding.evaluation import latency
+
+    why = (
+        " Both make S = 50 evaluations of the same network in one compiled loop; what differs is the work "
+        "around it (an ancestral DDPM step also draws fresh Gaussian noise), so the paper's larger gap is not "
+        "explained by the number of network calls."
+    )
+    if not rf.time_rounds_ms or len(rf.time_rounds_ms) != len(ddpm.time_rounds_ms):
+        return (
+            f"RF vs DDPM time: {rf.time_ms:.3f} vs {ddpm.time_ms:.3f} ms, measured one after the other, not "
+            "interleaved: untested (the paper: 4.87 vs 7.86 ms)." + why
+        )
+    c = latency.compare_ms(rf.time_rounds_ms, ddpm.time_rounds_ms)
+    return (
+        f"RF vs DDPM time: {time_cell(rf)} vs {time_cell(ddpm)} ms; RF / DDPM {c['ratio']:.3f} (median over "
+        f"rounds), RF faster in {c['faster_rounds']} of {c['rounds']} interleaved rounds, sign test p = "
+        f"{c['p']:.3f}: RF {c['verdict']} (the paper: 4.87 vs 7.86 ms, RF faster)." + why
+    )
+
+
 def findings(res: AblationResult) -> list[str]:
     """The paper's qualitative claims, checked on this run (whatever they turn out to be)."""
     r, out = res.rows, []
@@ -235,13 +276,7 @@ def findings(res: AblationResult) -> list[str]:
                     f"RF vs DDPM {distribution.LABELS[k]}: {fmt(a.mean_std[k])} vs {fmt(b.mean_std[k])}; difference {c['diff']:+.3f}, "
                     f"95% CI [{c['ci95'][0]:+.3f}, {c['ci95'][1]:+.3f}], Welch p = {c['p']:.3f}: RF {c['verdict']}."
                 )
-        out.append(
-            f"RF vs DDPM time: {rf.time_ms:.3f} vs {ddpm.time_ms:.3f} ms (RF "
-            f"{'faster' if rf.time_ms < ddpm.time_ms else 'not faster'}; the paper: 4.87 vs 7.86 ms). Both make "
-            "S = 50 evaluations of the same network in one compiled loop; what differs is the work around it "
-            "(an ancestral DDPM step also draws fresh Gaussian noise), so the gap here is small, and the "
-            "paper's larger one is not explained by the number of network calls."
-        )
+        out.append(time_finding(rf, ddpm))
 
     def tested(a, b, label):  # "A vs B" with Welch's test and a bootstrap interval over seeds
         parts = []
@@ -323,6 +358,8 @@ CSV_COLUMNS = (
     "diversity_std",
     "rms_mean",
     "time_ms",
+    "time_low_ms",
+    "time_high_ms",
     "throughput_per_s",
     "shape_rms_m",
     "shape_success_mean",
@@ -351,6 +388,7 @@ def table_csv(res: AblationResult) -> str:
                 *r.diversity,
                 r.rms[0],
                 r.time_ms,
+                *(r.time_interval_ms if len(r.time_interval_ms) == 2 else ("", "")),
                 r.throughput_per_s,
                 ph.shape_rms_m[0],
                 *ph.shape_success,

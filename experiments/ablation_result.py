@@ -66,13 +66,17 @@ class Row:
     rms: MeanStd  # normalized actuation RMS to the held-out reference, mean over tuples and samples
     diversity: MeanStd  # mean pairwise RMS of a tuple's K_div samples (normalized actuation)
     coverage: MeanStd  # mean over a tuple's realizations of the RMS to its nearest sample (lower: more reached)
-    time_ms: float  # warm single trajectory, median over the held-out tuples, ms
+    time_ms: float  # warm single trajectory, ms: median over the interleaved rounds of per-round medians
     time_measures: str  # what time_ms timed (jg.sample's public path, or the compiled core for raw text)
     throughput_per_s: float  # samples per second of the batched evaluation (all seeds)
     train_s: float  # wall time of training all seeds, s
     first_sample_success_per_seed: tuple[float, ...]  # ``success`` per seed (Welch tests between rows)
     distribution: Scores | None  # None: the library has no evaluation set
     physics: Physics
+    # Per-round medians of the interleaved timing (latency.interleaved_ms: every method timed in each round,
+    # in a fresh order) and the distribution-free 95% interval of their median; () in runs before issue #37.
+    time_rounds_ms: tuple[float, ...] = ()
+    time_interval_ms: tuple[float, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,6 +99,7 @@ class Timing:
     distribution_references_s: float | None  # benchmark v3 reference rows; None: no evaluation set
     physics_s: float  # every rollout: library, fine-tuning screens, rows and references
     run_s: float  # the whole run
+    latency_s: float | None = None  # Table II's Time, measured interleaved (None: a run before issue #37)
 
     def parts(self) -> dict[str, float]:
         """The recorded parts, in order."""
@@ -171,6 +176,9 @@ def _decode(hint, value, where: str):
         return configs.from_dict(value)
     if dataclasses.is_dataclass(hint):
         names = _json_fields(hint)
+        optional = {f.name for f in dataclasses.fields(hint) if f.default is not dataclasses.MISSING}
+        if isinstance(value, dict):  # a field added later with a default may be absent from older files
+            names = [n for n in names if n in value or n not in optional]
         if not isinstance(value, dict) or set(value) != set(names):
             got = sorted(value) if isinstance(value, dict) else type(value).__name__
             raise ValueError(f"{where}: expected the fields {names} of {hint.__name__}, got {got}")

@@ -58,3 +58,49 @@ def test_a_field_of_another_shape_is_named(recorded):
 def test_a_missing_result_names_the_command(tmp_path):
     with pytest.raises(FileNotFoundError, match="ablation.json and .*ablation_rms.npz not found: run make ablation"):
         ablation_result.load(tmp_path)
+
+
+def _with_rounds(res, rf_rounds, ddpm_rounds):
+    from jgrounding.evaluation import latency
+
+    rows = dict(res.rows)
+    for name, rounds in (("tuple_spline_rf", rf_rounds), ("tuple_spline_ddpm", ddpm_rounds)):
+        med, lo, hi = latency.median_interval(rounds)
+        rows[name] = dataclasses.replace(
+            rows[name], time_ms=med, time_rounds_ms=tuple(rounds), time_interval_ms=(lo, hi)
+        )
+    return dataclasses.replace(res, rows=rows)
+
+
+def _time_sentence(res):
+    (line,) = [f for f in ablation_report.findings(res) if f.startswith("RF vs DDPM time")]
+    return line
+
+
+def test_the_rf_vs_ddpm_time_sentence_follows_the_paired_test_over_rounds(recorded):
+    ddpm = [0.80 + 0.01 * i for i in range(10)]
+    faster = _time_sentence(_with_rounds(recorded, [x * 0.8 for x in ddpm], ddpm))
+    assert "RF faster in 10 of 10 interleaved rounds" in faster and ": RF faster (the paper" in faster
+    # a lower median alone does not make RF faster: here it is lower by one drifting round's luck
+    mixed = [x * (0.97 if i % 2 else 1.02) for i, x in enumerate(ddpm)]
+    assert ": RF not distinguishable" in _time_sentence(_with_rounds(recorded, mixed, ddpm))
+    assert ": RF slower" in _time_sentence(_with_rounds(recorded, [x * 1.2 for x in ddpm], ddpm))
+    # a run timed one method after the other is reported as untested, never as a verdict
+    old = _with_rounds(recorded, ddpm, ddpm)
+    old = dataclasses.replace(
+        old, rows={k: dataclasses.replace(v, time_rounds_ms=(), time_interval_ms=()) for k, v in old.rows.items()}
+    )
+    assert "not interleaved: untested" in _time_sentence(old)
+
+
+def test_a_file_written_before_the_interleaved_time_still_loads(recorded):
+    data = json.loads(ablation_result.to_json(recorded))
+    for row in data["rows"].values():
+        row.pop("time_rounds_ms", None)
+        row.pop("time_interval_ms", None)
+    data["timing"].pop("latency_s", None)
+    back = ablation_result.from_json(json.dumps(data))
+    assert all(r.time_rounds_ms == () for r in back.rows.values()) and back.timing.latency_s is None
+    data["rows"]["tuple_spline_rf"]["time_ms_typo"] = 1.0  # an unknown field is still refused
+    with pytest.raises(ValueError, match="expected the fields"):
+        ablation_result.from_json(json.dumps(data))
