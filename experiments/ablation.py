@@ -27,7 +27,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from experiments import ablation_result
+from experiments import ablation_result, bench_sample
 from experiments.ablation_report import (
     BRACKETS,
     DISPLAY,
@@ -360,7 +360,7 @@ def run(cfg: Config, lib=None) -> AblationResult:
         timing=Timing(**timing),
         environment=environment(),
         date=datetime.datetime.now().isoformat(timespec="seconds"),
-        machine=f"{platform.node()} · {platform.processor() or platform.machine()} · "
+        machine=f"{platform.node()} · {bench_sample.cpu_model()} ({bench_sample.cpu_isa()}) · "
         f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})",
         per_sample_rms=per_sample,
         samples=samples,

@@ -15,3 +15,21 @@ def test_network_floor_and_fixed_cost_run_on_the_single_trajectory_programs():
     parts = dict(re.findall(r"^\| (.+?) \| (-?[0-9.]+) \|$", "\n".join(lines), flags=re.M))
     assert float(parts["network + spline, ungated, less dispatch"]) >= 0
     assert len(parts) == 6 and "dispatch: a compiled program of the same arguments that returns one of them" in parts
+
+
+def test_the_matmul_rate_is_measured_on_the_networks_own_shapes(monkeypatch):
+    """matmul_gflops counts the same FLOPs as flops_per_sample (the share it reports compares like with like)
+    and returns a rate measured on this machine."""
+    model = sampling.model()  # S = 50, with guidance: rows doubled
+    seen = {}
+    real = bench_sample.median_s
+
+    def timed(call, reps):
+        seen["s"] = real(call, reps)
+        return seen["s"]
+
+    monkeypatch.setattr(bench_sample, "median_s", timed)
+    rate = bench_sample.matmul_gflops(model, steps=3, batch=8, reps=2)
+    assert rate > 0
+    flop = bench_sample.flops_per_sample(model, 3) * 8  # the sampler's FLOPs of 8 samples at S = 3
+    assert abs(rate * 1e9 * seen["s"] - flop) / flop < 1e-9
