@@ -110,6 +110,7 @@ $(PEER_VENV)/.installed:
 
 bench-peer: install $(PEER_VENV)/.installed
 	$(PY) -m experiments.bench_peer --python $(PEER_VENV)/bin/python
+	$(PY) -m experiments.bench_semantics --peer-only --peer-python $(PEER_VENV)/bin/python
 	$(PY) -m tools.readme
 
 # The prepared accelerator check: <= 8 min on one GPU, writes results/gpu.md (--tiny: CPU, seconds).

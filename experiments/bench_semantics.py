@@ -21,10 +21,21 @@ median, p99; the first call in a fresh process is timed in a subprocess, with th
 cold; where a warm call's time goes, :func:`breakdown`). A risk-coverage curve (accuracy of the acted-on texts, a no-behaviour text counting as wrong, against the
 share acted on, texts ranked by confidence) is saved as ``results/semantics_risk_coverage.png``. Writes
 ``results/bench_semantics.md`` and ``.json`` and the confusion matrix ``results/semantics_confusion.png``.
+
+The PyTorch peer (issue #34 item 3), first in the same run: with ``--peer-python PATH`` (default
+``.venv-peer/bin/python`` where it exists, else skipped with a note), a sample of the test splits' texts is tokenized
+by us and, with the weights of the encoder jg.ground runs, exported to experiments/peer_torch_encoder.py, which
+rebuilds MiniLM in PyTorch and times it eager and under ``torch.compile``; our encoder alone and ``jg.ground`` are
+timed on the same texts, pass by pass in alternation with it (:func:`peer_comparison`). The embeddings must agree
+(cosine >= 0.999 for every text, else :class:`ParityError`). The ratios, the achieved GFLOP/s of both against a
+matmul rate measured in the same run, and the CPU go into the peer block of ``results/bench_semantics.md`` (between
+``<!-- semantics-peer:start -->`` and ``<!-- semantics-peer:end -->``) and under ``"peer"`` in the ``.json``; a run
+without the peer keeps the block. ``--peer-only`` (``make bench-peer``) runs the peer alone and rewrites only that block.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -312,6 +323,347 @@ def first_call_seconds(cache: str | None) -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+# --- The PyTorch peer of the encoder, in the same run (issue #34 item 3; `make bench-peer`, or --peer-only) ------
+PEER_PYTHON = ROOT / ".venv-peer" / "bin" / "python"  # made by the Makefile's $(PEER_VENV) rule
+PEER_SCRIPT = ROOT / "experiments" / "peer_torch_encoder.py"
+PEER_START, PEER_END = "<!-- semantics-peer:start -->", "<!-- semantics-peer:end -->"  # the peer block's markers
+PEER_TEXTS = 120  # texts sampled evenly from the test splits (SPLITS) for the peer comparison
+PEER_REPS = 3  # rounds: a timed pass of ours and one of the peer's each, alternating
+PEER_MIN_COSINE = 0.999  # JAX vs PyTorch sentence embeddings, every text
+PEER_COMPILE_TIMEOUT_S = 300  # torch.compile's whole run (compile + timing); past it, the eager rows stand alone
+MATMUL_LARGE = 1024  # tokens of the second matmul-rate shape (a long batch: the machine's sustained rate)
+
+
+class ParityError(AssertionError):
+    """JAX and PyTorch embeddings of the same text disagree (below :data:`PEER_MIN_COSINE`)."""
+
+
+def encoder_flops(
+    length: int,
+    *,
+    hidden: int = encoder.HIDDEN,
+    intermediate: int = encoder.INTERMEDIATE,
+    layers: int = encoder.NUM_LAYERS,
+) -> int:
+    """FLOPs (two per multiply-add) of one text of ``length`` tokens through a BERT encoder of these dims: per layer
+    the four ``hidden x hidden`` products (query, key, value, output), the two ``hidden x intermediate`` ones (FFN)
+    and attention's two ``length x length x hidden`` (scores, context). Norms, GELU, softmax, embeddings and pooling
+    (``O(length x hidden)`` each) are left out, so a rate computed from it is a lower bound. MiniLM's dims give
+    :func:`jgrounding.semantics.encoder.matmul_flops`."""
+    dense = 4 * hidden * hidden + 2 * hidden * intermediate
+    return layers * 2 * (length * dense + 2 * length * length * hidden)
+
+
+def peer_sample(splits: dict, n: int = PEER_TEXTS) -> list[str]:
+    """``n`` texts spread evenly over the test splits (in SPLITS order): the same texts every run."""
+    texts = [it["text"] for items in splits.values() for it in items]
+    idx = np.unique(np.linspace(0, len(texts) - 1, min(n, len(texts))).round().astype(int))
+    return [texts[i] for i in idx]
+
+
+def tokenize_one(text: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """Our tokenizer for one text as the encoder takes it: ids and mask ``(1, bucket)`` int32, and its token count."""
+    enc = encoder.tokenizer().encode(text)
+    ids, mask = encoder.pad_rows([enc], encoder.bucket_length(len(enc.ids)), 1)
+    return ids, mask, len(enc.ids)
+
+
+def export_peer(params: dict, texts: list[str], path) -> dict:
+    """Write what experiments/peer_torch_encoder.py rebuilds and runs: the encoder's weights (``params``, the JAX
+    pytree flattened with ``/``, every leaf as float32: float16-stored matrices widened to the values the program
+    computes with), our tokenization of ``texts`` (ids and mask padded to the longest bucket, with each text's
+    token count and bucket), the head count and the LayerNorm epsilon. Returns the token arrays."""
+    toks = [tokenize_one(t) for t in texts]
+    width = max(ids.shape[1] for ids, _, _ in toks)
+    tokens = {
+        "ids": np.zeros((len(texts), width), np.int32),
+        "mask": np.zeros((len(texts), width), np.int32),
+        "lengths": np.array([n for *_, n in toks], np.int32),
+        "buckets": np.array([ids.shape[1] for ids, _, _ in toks], np.int32),
+    }
+    for i, (ids, mask, _) in enumerate(toks):
+        tokens["ids"][i, : ids.shape[1]], tokens["mask"][i, : ids.shape[1]] = ids[0], mask[0]
+    weights = {k: np.asarray(v, np.float32) for k, v in semantic_head.flatten(params).items()}
+    config = {"num_heads": np.int32(encoder.NUM_HEADS), "ln_eps": np.float64(encoder.LN_EPS)}
+    np.savez(path, **weights, **tokens, **config)
+    return tokens
+
+
+def check_parity(ours, peer, label: str = "torch", min_cosine: float = PEER_MIN_COSINE) -> float:
+    """The lowest cosine similarity between matching rows of two ``(N, D)`` embedding arrays; raises
+    :class:`ParityError` (naming the worst text) when any row is below ``min_cosine``, not finite, or the shapes
+    differ."""
+    a, b = np.asarray(ours, np.float64), np.asarray(peer, np.float64)
+    if a.shape != b.shape or a.ndim != 2:
+        raise ParityError(f"{label}: embeddings of shape {b.shape}, ours {a.shape}")
+    cos = (a * b).sum(1) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-30)
+    bad = np.flatnonzero(~(cos >= min_cosine))  # NaN counts as bad
+    if bad.size:
+        worst = int(bad[np.argmin(np.nan_to_num(cos[bad], nan=-2.0))])
+        raise ParityError(
+            f"{label}: {bad.size} of {len(cos)} texts below cosine {min_cosine} against JAX "
+            f"(worst: text {worst}, cosine {cos[worst]:.6f})"
+        )
+    return float(cos.min())
+
+
+def matmul_gflops(tokens: int, reps: int = 200) -> float:
+    """The machine's rate, measured now, for the encoder's dominant product: a plain jitted JAX float32
+    ``(tokens x 384) @ (384 x 1536)`` (ff1's shape; ff2 is its transpose), inputs on the device, median of
+    ``reps``."""
+    rng = np.random.default_rng(0)
+    a = jax.device_put(rng.standard_normal((tokens, encoder.HIDDEN), np.float32))
+    b = jax.device_put(rng.standard_normal((encoder.HIDDEN, encoder.INTERMEDIATE), np.float32))
+    f = jax.jit(lambda x, y: x @ y)
+    f(a, b).block_until_ready()
+    times = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        f(a, b).block_until_ready()
+        times.append(time.perf_counter() - t0)
+    return 2 * tokens * encoder.HIDDEN * encoder.INTERMEDIATE / float(np.median(times)) / 1e9
+
+
+def _per_text_ms(calls: list, reps: int) -> list[float]:
+    """Per call (one per text): the median milliseconds of ``reps`` passes over all of them (after one untimed)."""
+    for call in calls:
+        call()
+    times = np.zeros((reps, len(calls)))
+    for r in range(reps):
+        for j, call in enumerate(calls):
+            t0 = time.perf_counter()
+            call()
+            times[r, j] = time.perf_counter() - t0
+    return (1e3 * np.median(times, axis=0)).tolist()
+
+
+def ours_ms(params: dict, texts: list[str], reps: int) -> dict:
+    """Per text (ms): our tokenization for the encoder (:func:`tokenize_one`), the JAX encoder alone on those
+    inputs (``encoder.encode_ids`` with ``params``: ids and mask in, the unit sentence vector out) and the whole
+    ``jg.ground``."""
+    toks = [tokenize_one(t) for t in texts]
+    return {
+        "tokenize": _per_text_ms([lambda t=t: tokenize_one(t) for t in texts], reps),
+        "encoder": _per_text_ms(
+            [lambda i=i, m=m: encoder.encode_ids(params, i, m).block_until_ready() for i, m, _ in toks], reps
+        ),
+        "ground": _per_text_ms([lambda t=t: jg.ground(t) for t in texts], reps),
+    }
+
+
+def run_peer(
+    python, weights: Path, out: Path, modes: str, reps: int, timeout: float | None = None, inductor: Path | None = None
+) -> dict:
+    """experiments/peer_torch_encoder.py in the torch environment ``python`` (its output shown as it runs); its
+    JSON. ``inductor``: TorchInductor's cache folder (default: a new one beside ``out``, so torch.compile's time is a
+    cold compile's, as on a user's first run). Raises ``CalledProcessError`` / ``TimeoutExpired``."""
+    cmd = [str(python), str(PEER_SCRIPT), str(weights), str(out), "--modes", modes, "--reps", str(reps)]
+    cache = inductor or out.parent / f"inductor-{out.stem}"
+    env = {**os.environ, "PYTHONPATH": "", "TORCHINDUCTOR_CACHE_DIR": str(cache)}
+    subprocess.run(cmd, check=True, cwd=ROOT, env=env, timeout=timeout)
+    return json.loads(out.read_text())
+
+
+def peer_comparison(splits: dict, python, n: int = PEER_TEXTS, reps: int = PEER_REPS, timeout=None) -> tuple:
+    """Time our encoder, ``jg.ground`` and the PyTorch peer (eager, eager padded to our buckets, torch.compile) on
+    the same texts in this run, alternating ours and the peer pass by pass (``reps`` rounds, the order flipped each
+    round, so a shared machine's drift in speed falls on both); check parity; return ``(block, payload)``: the
+    Markdown peer block (between :data:`PEER_START` and :data:`PEER_END`) and its JSON."""
+    texts = peer_sample(splits, n)
+    head = semantic_head.load()
+    params = head.encoder_params()  # the encoder jg.ground runs (tuned top layers, float16-stored matrices)
+    semantics.warmup(256)
+    load = os.getloadavg()[0]
+    ours_emb = np.stack([np.asarray(encoder.encode_ids(params, *tokenize_one(t)[:2]))[0] for t in texts])
+    compile_note, ours_runs, peer_runs = None, [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        weights = Path(tmp) / "minilm.npz"
+        tokens = export_peer(params, texts, weights)
+        for r in range(reps):
+            for who in ("ours", "peer") if r % 2 == 0 else ("peer", "ours"):
+                if who == "ours":
+                    ours_runs.append(ours_ms(params, texts, 1))
+                    o = ours_runs[-1]
+                    print(
+                        f"ours, round {r + 1}: encoder {np.median(o['encoder']):.2f} ms, jg.ground "
+                        f"{np.median(o['ground']):.2f} ms, tokenization {np.median(o['tokenize']):.3f} ms",
+                        flush=True,
+                    )
+                    continue
+                run = run_peer(python, weights, Path(tmp) / f"eager{r}.json", "eager,eager_padded", 1)
+                if compile_note is None:  # one TorchInductor cache for every round: the first compiles cold
+                    out, cache = Path(tmp) / f"compile{r}.json", Path(tmp) / "inductor"
+                    try:
+                        run["modes"] |= run_peer(python, weights, out, "compile", 1, timeout, cache)["modes"]
+                    except subprocess.TimeoutExpired:
+                        compile_note = f"torch.compile did not finish within {timeout:g} s: eager rows only"
+                    except subprocess.CalledProcessError as e:
+                        compile_note = (
+                            f"torch.compile failed (exit {e.returncode}; its error is printed above): eager only"
+                        )
+                peer_runs.append(run)
+    modes = [m for m in ("eager", "eager_padded", "compile") if all(m in run["modes"] for run in peer_runs)]
+    peer = dict(peer_runs[0], modes={})
+    for m in modes:
+        ms = np.median([run["modes"][m]["ms"] for run in peer_runs], axis=0)  # per text, over the rounds
+        peer["modes"][m] = {"ms": ms.tolist(), "embeddings": peer_runs[0]["modes"][m]["embeddings"]}
+        peer["modes"][m]["round_ms_median"] = [float(np.median(run["modes"][m]["ms"])) for run in peer_runs]
+        for run in peer_runs:  # every round's output must agree
+            check_parity(ours_emb, run["modes"][m]["embeddings"], f"torch {m}")
+    compile_times = [run["modes"]["compile"]["compile_s"] for run in peer_runs] if "compile" in modes else []
+    cosines = {mode: check_parity(ours_emb, v["embeddings"], f"torch {mode}") for mode, v in peer["modes"].items()}
+    lengths, buckets = tokens["lengths"], tokens["buckets"]
+    typical = int(np.median(buckets))
+    rates = {"bucket": matmul_gflops(typical), "large": matmul_gflops(MATMUL_LARGE, reps=50)}
+    flops = {
+        "bucket": np.array([encoder_flops(int(b)) for b in buckets], float),
+        "own": np.array([encoder_flops(int(n)) for n in lengths], float),
+    }
+    ours = {k: np.median([run[k] for run in ours_runs], axis=0).tolist() for k in ours_runs[0]}
+    round_ms = {k: [float(np.median(run[k])) for run in ours_runs] for k in ("encoder", "ground")}
+    round_ms |= {f"torch_{m}": v["round_ms_median"] for m, v in peer["modes"].items()}
+
+    def row(ms, shapes) -> dict:
+        gflops = flops[shapes].sum() / 1e6 / float(np.sum(ms))
+        return {
+            "ms_median": float(np.median(ms)),
+            "gflops": gflops,
+            "share": gflops / rates["bucket"],  # of the matmul rate at the sample's median bucket
+            "share_large": gflops / rates["large"],  # of the rate at MATMUL_LARGE tokens
+        }
+
+    rows = {
+        "jax_encoder": row(ours["encoder"], "bucket"),
+        "jg_ground": row(ours["ground"], "bucket"),
+        **{f"torch_{m}": row(v["ms"], "bucket" if m == "eager_padded" else "own") for m, v in peer["modes"].items()},
+    }
+    enc_ms, ground_ms = rows["jax_encoder"]["ms_median"], rows["jg_ground"]["ms_median"]
+    for key, r in rows.items():
+        if key.startswith("torch_"):
+            r["vs_encoder"], r["vs_ground"] = r["ms_median"] / enc_ms, r["ms_median"] / ground_ms
+    tok_ms = float(np.median(ours["tokenize"]))
+    labels = {
+        "jax_encoder": "JAX encoder alone (`encoder.encode_ids`, one text at its token bucket, matrices stored in "
+        "float16 as grounding keeps them)",
+        "jg_ground": "`jg.ground` (the whole call: structure, tokenizer, encoder pooled 4 ways, head, vote)",
+        "torch_eager": f"PyTorch {peer['torch']} eager, the text's own token count",
+        "torch_eager_padded": f"PyTorch {peer['torch']} eager, padded to our token bucket",
+        "torch_compile": f"PyTorch {peer['torch']} `torch.compile(dynamic=True)`, own token count",
+    }
+
+    def line(key) -> str:
+        r = rows[key]
+        ratios = f"{r['vs_encoder']:.2f}x | {r['vs_ground']:.2f}x" if "vs_encoder" in r else " | "
+        lb = " (lower bound)" if key == "jg_ground" else ""
+        shares = f"{100 * r['share']:.0f} % | {100 * r['share_large']:.0f} %"
+        return f"| {labels[key]} | {r['ms_median']:.2f} | {ratios} | {r['gflops']:.0f}{lb} | {shares} |"
+
+    compile_s = compile_times[0] if compile_times else None
+    names = {"encoder": "JAX encoder", "ground": "`jg.ground`", "torch_eager": "eager", "torch_eager_padded": "padded"}
+    names["torch_compile"] = "compiled"
+    round_text = "; ".join(f"{names[k]} {', '.join(f'{x:.2f}' for x in v)} ms" for k, v in round_ms.items())
+    cos_text = ", ".join(f"{cosines[m]:.6f} ({m})" for m in cosines)
+    lines = [
+        PEER_START,
+        "",
+        "### PyTorch peer of the encoder, same run (`make bench-peer`, experiments/peer_torch_encoder.py)",
+        "",
+        f"CPU: {cpu_model()} ({cpu_isa()}), {os.cpu_count()} cores, load average {load:.2f} at the start; "
+        f"PyTorch {peer['torch']} with {peer['threads']} threads ({peer['interop_threads']} inter-op), "
+        f"JAX {jax.__version__} (XLA_FLAGS: {os.environ.get('XLA_FLAGS') or 'none'}). {len(texts)} texts spread "
+        f"evenly over the v2 and plain test splits ({lengths.min()} to {lengths.max()} tokens, median "
+        f"{np.median(lengths):g}; our buckets median {typical}), each alone, warm. Ours and the peer alternate pass "
+        f"by pass, {reps} rounds with the order flipped each round, so the machine's drift falls on both; per text "
+        "the median over the rounds, then the median over texts (GFLOP/s: total FLOPs over the sum of the texts' "
+        f"medians). Each round's median: {round_text}. The peer rebuilds the same MiniLM from our exported weights "
+        "(the shipped head's encoder, float32) "
+        "as Hugging Face's BertModel with mean pooling and L2 norm, run as sentence-transformers users run it "
+        "(`eval()`, `torch.inference_mode()`, one text per call).",
+        "",
+        "| encoder-only unless said | median ms | peer / JAX encoder | peer / `jg.ground` | GFLOP/s | "
+        f"share of the matmul rate at T = {typical} | at T = {MATMUL_LARGE} |",
+        "|---|---|---|---|---|---|---|",
+        line("jax_encoder"),
+        line("jg_ground"),
+        *[line(k) for k in ("torch_eager", "torch_eager_padded", "torch_compile") if k in rows],
+        "",
+        "Tokenization is not included on the peer side (its environment has no tokenizer; it gets our token ids "
+        "and masks), nor in the JAX encoder row: the ratios compare encoder-only with encoder-only. Our "
+        f"tokenization for the encoder (tokenizers + padding to the bucket) took {tok_ms:.3f} ms median per text; a "
+        "whole sentence-embedding call adds it on either side. Ratios are of milliseconds: above 1x, ours is faster.",
+        "",
+        f"GFLOP/s: the matrix products of `encoder_flops` (6 layers: q, k, v, o 384 x 384, FFN 384 x 1536 twice, "
+        f"attention's two L x L x 384) over the texts' times, at the shapes each runs (ours at the bucket, mean "
+        f"{flops['bucket'].mean() / 1e6:.0f} MFLOP per text; the peer at the text's own length, mean "
+        f"{flops['own'].mean() / 1e6:.0f} MFLOP, but for the padded row); `jg.ground`'s counts only the encoder. "
+        f"Measured matmul rate in this run (jitted JAX float32 (T x 384) @ (384 x 1536), inputs on the device): "
+        f"{rates['bucket']:.0f} GFLOP/s at T = {typical} tokens (the sample's median bucket: one text's product), "
+        f"{rates['large']:.0f} GFLOP/s at T = {MATMUL_LARGE} (a long product: the machine's sustained rate). "
+        "A share above 100 % means the implementation's products beat XLA's single product at that shape.",
+        "",
+        f"Parity: cosine of the JAX and PyTorch sentence embeddings, lowest over the {len(texts)} texts: {cos_text} "
+        f"(each text must reach {PEER_MIN_COSINE}). "
+        + (
+            f"torch.compile: {compile_s:.1f} s to compile on the first call (one dynamic-shape graph, empty "
+            f"TorchInductor cache; {', '.join(f'{x:.1f}' for x in compile_times[1:]) or '-'} s in the later "
+            "rounds' fresh processes, the cache warm)."
+            if compile_s is not None
+            else compile_note
+        ),
+        "",
+        PEER_END,
+    ]
+    payload = {
+        "cpu": cpu_model(),
+        "isa": cpu_isa(),
+        "cores": os.cpu_count(),
+        "load_average": load,
+        "texts": len(texts),
+        "reps": reps,
+        "tokens": {"min": int(lengths.min()), "max": int(lengths.max()), "median": float(np.median(lengths))},
+        "torch": peer["torch"],
+        "torch_threads": peer["threads"],
+        "jax": jax.__version__,
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "tokenize_ms_median": tok_ms,
+        "round_ms_median": round_ms,
+        "rows": rows,
+        "matmul_gflops": {f"T={typical}": rates["bucket"], f"T={MATMUL_LARGE}": rates["large"]},
+        "min_cosine": cosines,
+        "compile_s": compile_s,
+        "compile_s_cache_warm": compile_times[1:],
+        "compile_note": compile_note,
+        "comparison": "encoder-only vs encoder-only; tokenization excluded on both sides (ours reported apart)",
+    }
+    return "\n".join(lines), payload
+
+
+def with_peer_block(text: str, block: str) -> str:
+    """``text`` with its peer block (between :data:`PEER_START` and :data:`PEER_END`) replaced by ``block``, or
+    ``block`` appended where it has none; the rest unchanged."""
+    if PEER_START in text and PEER_END in text:
+        return text[: text.index(PEER_START)] + block + text[text.index(PEER_END) + len(PEER_END) :]
+    return (text.rstrip("\n") + "\n\n" if text.strip() else "") + block + "\n"
+
+
+def kept_peer(md: Path, js: Path) -> tuple[str | None, dict | None]:
+    """The peer block and JSON a previous run left in the results files (None where there is none)."""
+    text = md.read_text() if md.exists() else ""
+    block = None
+    if PEER_START in text and PEER_END in text:
+        block = text[text.index(PEER_START) : text.index(PEER_END) + len(PEER_END)]
+    payload = json.loads(js.read_text()).get("peer") if js.exists() else None
+    return block, payload
+
+
+def write_peer_section(md: Path, js: Path, block: str, payload: dict) -> None:
+    """Put the peer block into ``md`` and the peer JSON under ``"peer"`` in ``js``, keeping everything else in
+    both; each written atomically."""
+    write_atomic(md, with_peer_block(md.read_text() if md.exists() else "", block))
+    data = json.loads(js.read_text()) if js.exists() else {}
+    write_atomic(js, json.dumps(data | {"peer": payload}, indent=1) + "\n")
+
+
 def _fmt(x, digits=3):
     return "–" if x is None else f"{x:.{digits}f}"
 
@@ -373,7 +725,29 @@ def confusion_figure(true, pred, path: Path, title: str) -> Path:
     return path
 
 
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(prog="python -m experiments.bench_semantics", description=__doc__.split("\n")[0])
+    p.add_argument(
+        "--peer-python",
+        help=f"the PyTorch environment's python for the encoder peer (default: {PEER_PYTHON.relative_to(ROOT)} if "
+        "it exists, else the peer is skipped; `make .venv-peer/.installed` makes it)",
+    )
+    p.add_argument(
+        "--peer-only",
+        action="store_true",
+        help="only the PyTorch peer (1-2 min): update the peer section of results/bench_semantics.md and .json",
+    )
+    p.add_argument("--peer-texts", type=int, default=PEER_TEXTS, help="texts sampled from the test splits")
+    p.add_argument("--peer-reps", type=int, default=PEER_REPS, help="rounds of one timed pass each, ours and peer")
+    p.add_argument("--peer-compile-timeout", type=float, default=PEER_COMPILE_TIMEOUT_S, help="seconds")
+    args = p.parse_args(argv)
+    if args.peer_python is None and PEER_PYTHON.exists():
+        args.peer_python = str(PEER_PYTHON)
+    return args
+
+
 def main(argv=None) -> int:
+    args = parse_args(argv)
     missing = [str(p) for p in [*SPLITS.values(), *BENCH_V3.values(), OLD_HEAD] if not p.exists()]
     if missing:
         print(f"missing: {', '.join(missing)}")
@@ -384,7 +758,25 @@ def main(argv=None) -> int:
             "unset it, bench semantics measures the offline reducer with jg.ground's defaults"
         )
         return 1
+    if args.peer_python is not None and not Path(args.peer_python).exists():
+        print(f"--peer-python {args.peer_python} not found (`make .venv-peer/.installed` makes .venv-peer)")
+        return 1
     splits = {name: read_jsonl(path) for name, path in SPLITS.items()}
+    peer = None
+    if args.peer_python is None:
+        print(
+            f"PyTorch peer skipped: {PEER_PYTHON.relative_to(ROOT)} not found and no --peer-python given "
+            "(`make .venv-peer/.installed` makes it; the peer section of the results is kept as it was)"
+        )
+        if args.peer_only:
+            return 1
+    else:  # first: a parity failure stops the run before the long part
+        peer = peer_comparison(splits, args.peer_python, args.peer_texts, args.peer_reps, args.peer_compile_timeout)
+        print(f"CPU: {cpu_model()} ({cpu_isa()})")
+        print(peer[0])
+        if args.peer_only:
+            write_peer_section(RESULTS / "bench_semantics.md", RESULTS / "bench_semantics.json", *peer)
+            return 0
     with tempfile.TemporaryDirectory() as cold:
         first_cold = first_call_seconds(cold)
     first_call_seconds(None)  # fill the user's compilation cache (a no-op when it is already warm)
@@ -594,7 +986,9 @@ def main(argv=None) -> int:
     lines += ["", f"Risk-coverage curves: {fig.relative_to(ROOT)}; confusion matrix: {conf_fig.relative_to(ROOT)}"]
     print(f"CPU: {cpu_model()}")
     print("\n".join(lines))
-    write_atomic(RESULTS / "bench_semantics.md", "\n".join(lines) + "\n")
+    peer_block, peer_payload = peer or kept_peer(RESULTS / "bench_semantics.md", RESULTS / "bench_semantics.json")
+    md = "\n".join(lines) + "\n"
+    write_atomic(RESULTS / "bench_semantics.md", with_peer_block(md, peer_block) if peer_block else md)
     payload = {
         "metrics": {f"{n}|{sp}|{st}": v for (n, sp, st), v in res.items()},
         "latency": latency,
@@ -608,6 +1002,7 @@ def main(argv=None) -> int:
         "one_core": pinned,
         "goals": {g: {"met": bool(ok), "measured": v} for _, g, ok, v in checks},
         "head": {k: head.meta.get(k) for k in ("selected", "temperature", "threshold", "params_digest")},
+        "peer": peer_payload,
         "risk_coverage": {
             f"{n}|{sp}": {"coverage": c[::4].round(4).tolist(), "accuracy": a[::4].round(4).tolist()}
             for (n, sp), (c, a, _) in curves.items()
