@@ -156,12 +156,10 @@ def environment() -> Environment:
     """What can make a re-run differ on another machine: threads, XLA flags, versions (recorded in results)."""
     import os
 
-    flags = ""
     try:
-        flags = next(line for line in Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("flags"))
-    except (OSError, StopIteration):
-        pass
-    isa = next((x for x in ("avx512f", "avx2", "avx") if f" {x} " in f"{flags} "), platform.machine())
+        isa = bench_sample.cpu_isa()  # the one reading of the vector ISA every timing is printed with
+    except OSError:  # no /proc/cpuinfo
+        isa = platform.machine()
     return Environment(
         cpu_isa=isa,
         cpu_count=os.cpu_count() or 1,

@@ -110,7 +110,7 @@ class Timing:
 class Environment:
     """What can make a re-run differ on another machine."""
 
-    cpu_isa: str  # avx512f, avx2, avx or the machine: XLA emits code for it (bit-for-bit only on the same one)
+    cpu_isa: str  # avx512f, avx2+fma, sse (bench_sample.cpu_isa) or the machine: XLA emits code for it (bit-for-bit only on the same one)
     cpu_count: int
     xla_flags: str  # $XLA_FLAGS ("" when unset)
     omp_num_threads: str  # $OMP_NUM_THREADS ("" when unset)

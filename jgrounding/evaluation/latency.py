@@ -64,9 +64,13 @@ def public_ms(
 ) -> float:
     """Median warm wall time (ms) of ``model.sample(key_i, intent[i % N], intensity[i % N], num_samples)``
     with ``config``'s sampler and steps over ``reps`` calls; ``intent``, ``intensity``: index arrays ``(N,)``."""
+    return _median_ms(*_public_calls(model, intent, intensity, key, config, num_samples, reps))
+
+
+def _public_calls(model: sampling.Model, intent, intensity, key, config: SampleConfig, num_samples: int, reps: int):
+    """``(call, args_list)`` that :func:`public_ms` times."""
     config = model.config(config.sampler, config.steps)
-    calls = _calls(intent, intensity, key, reps)
-    return _median_ms(lambda k, m, z: model.sample(k, m, z, num_samples, config), calls)
+    return (lambda k, m, z: model.sample(k, m, z, num_samples, config)), _calls(intent, intensity, key, reps)
 
 
 def jg_sample_ms(intent, intensity, key, *, steps: int = SampleConfig.steps, reps: int = 200) -> float:
@@ -110,14 +114,18 @@ def core_ms(
     """Median warm wall time (ms) of the compiled core for ``batch`` trajectories per call, cycling through
     ``cond (N, 384)``, ``intensity (N,)``; inputs and keys on the device before the clock. ``like_public``:
     compiled with the XLA options ``jg.sample`` uses for ``batch`` (the benchmark's public/core ratio)."""
+    return _median_ms(*_core_calls(trained, cond, intensity, key, config, batch, reps, like_public))
+
+
+def _core_calls(trained: Trained, cond, intensity, key, config, batch: int, reps: int, like_public: bool = False):
+    """``(compiled core, args_list)`` that :func:`core_ms` times."""
     n = len(cond)
     keys = jax.random.split(key, reps)
     rows = [np.arange(i * batch, (i + 1) * batch) % n for i in range(reps)]
     calls = [
         (jnp.asarray(cond[r], jnp.float32), jnp.asarray(intensity[r], jnp.int32), keys[i]) for i, r in enumerate(rows)
     ]
-    fn = core_fn(trained, config, example=calls[0] if like_public else None)
-    return _median_ms(fn, calls)
+    return core_fn(trained, config, example=calls[0] if like_public else None), calls
 
 
 def latency_calls(
@@ -129,20 +137,9 @@ def latency_calls(
     if trained.spec.condition.needs_text:
         if cond is None:
             raise ValueError(f"{trained.method} is conditioned on text: pass its embeddings as cond (N, 384)")
-        n = len(cond)
-        keys = jax.random.split(key, reps)
-        calls = [
-            (
-                jnp.asarray(cond[i % n : i % n + 1], jnp.float32),
-                jnp.asarray(intensity[i % n : i % n + 1], jnp.int32),
-                keys[i],
-            )
-            for i in range(reps)
-        ]
-        return core_fn(trained, config), calls
+        return _core_calls(trained, cond, intensity, key, config, batch=1, reps=reps)
     model = model_of(dataclasses.replace(trained, sample_config=config))
-    config = model.config(config.sampler, config.steps)
-    return (lambda k, m, z: model.sample(k, m, z, 1, config)), _calls(intent, intensity, key, reps)
+    return _public_calls(model, intent, intensity, key, config, num_samples=1, reps=reps)
 
 
 def latency_ms(
