@@ -173,6 +173,9 @@ def _decode(hint, value, where: str):
     """``value`` read from JSON as the type ``hint`` of its field (``where`` names it in errors)."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if hint is Config:
+        if isinstance(value, dict) and isinstance(value.get("eval"), dict) and "physics_samples" not in value["eval"]:
+            # recorded before EvalConfig.physics_samples existed: those runs simulated every sample
+            value = {**value, "eval": {**value["eval"], "physics_samples": value["eval"].get("num_samples", 30)}}
         return configs.from_dict(value)
     if dataclasses.is_dataclass(hint):
         names = _json_fields(hint)

@@ -99,6 +99,27 @@ def cache_dir() -> Path | None:
     return base / "jax"
 
 
+def data_cache_dir() -> Path | None:
+    """Where results that are pure functions of their inputs persist between runs (the benchmark's reference
+    samples, keyed by a content hash of everything they depend on): ``$JGROUNDING_CACHE/data``, else
+    ``$XDG_CACHE_HOME/jgrounding/data``; None with ``JGROUNDING_CACHE=off`` (compute every time)."""
+    jax_dir = cache_dir()
+    return None if jax_dir is None else jax_dir.parent / "data"
+
+
+def content_key(*parts: str | bytes | os.PathLike) -> str:
+    """SHA-256 over ``parts`` in order: a ``Path`` contributes its file's contents (hashed), bytes and strings
+    themselves. The one key of :func:`data_cache_dir` entries: a change to any input file or value is a new key."""
+    h = hashlib.sha256()
+    for part in parts:
+        if isinstance(part, os.PathLike):
+            h.update(sha256_file(part).encode())
+        else:
+            h.update(part if isinstance(part, bytes) else str(part).encode())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
 def enable_compilation_cache(path: str | Path | None = None, *, min_compile_secs: float = 0.0) -> str | None:
     """Turn on JAX's persistent compilation cache, so compiled programs survive the process: in ``path`` when given
     (it replaces any folder set before), else in :func:`cache_dir` unless a folder is already set (the user's own

@@ -46,8 +46,10 @@ def pytest_summary(output: str) -> str:
     return lines[-1] if lines else ""
 
 
-def run(command: str, avx2: bool, repo: Path = ROOT) -> dict:
-    """Clone ``repo``'s HEAD into a temporary folder and time ``COMMANDS[command]`` there; the record."""
+def run(command: str, avx2: bool, repo: Path = ROOT, keep_results: bool = False) -> dict:
+    """Clone ``repo``'s HEAD into a temporary folder and time ``COMMANDS[command]`` there; the record.
+    ``keep_results``: after a successful run, copy what the command wrote under the clone's ``results/`` back
+    into ``repo``'s (the timed ``make ablation`` is then also the run the results come from)."""
     with tempfile.TemporaryDirectory(prefix="jg-time-") as tmp:
         clone, cache = Path(tmp) / "clone", Path(tmp) / "cache"
         subprocess.run(["git", "clone", "--quiet", str(repo), str(clone)], check=True)
@@ -60,6 +62,12 @@ def run(command: str, avx2: bool, repo: Path = ROOT) -> dict:
         t0 = time.perf_counter()
         proc = subprocess.run(COMMANDS[command], cwd=clone, env=env, capture_output=True, text=True)
         wall = time.perf_counter() - t0
+        if keep_results and not proc.returncode:
+            for path in sorted((clone / "results").rglob("*")):
+                rel = path.relative_to(clone)
+                if path.is_file() and (not (repo / rel).exists() or (repo / rel).read_bytes() != path.read_bytes()):
+                    write_atomic(repo / rel, path.read_bytes())
+                    print(f"kept {rel}", flush=True)
     out = proc.stdout + proc.stderr
     if proc.returncode:
         print(out[-4000:], file=sys.stderr)
@@ -121,6 +129,11 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("commands", nargs="*", help=f"what to time: {', '.join(COMMANDS)} (none: only regenerate the doc)")
     p.add_argument("--avx2", action="store_true", help=f"XLA_FLAGS={AVX2} (no AVX-512 code, as on an AVX2 machine)")
+    p.add_argument(
+        "--keep-results",
+        action="store_true",
+        help="copy what each command wrote under the clone's results/ back here (the timed run's own results)",
+    )
     args = p.parse_args(argv)
     unknown = [c for c in args.commands if c not in COMMANDS]
     if unknown:
@@ -130,7 +143,7 @@ def main(argv=None) -> int:
     print(f"machine: {m['cores']}-core {m['cpu']} ({m['isa']}); XLA_FLAGS {AVX2 if args.avx2 else '(none)'}")
     rc = 0
     for command in args.commands:
-        rec = run(command, args.avx2)
+        rec = run(command, args.avx2, keep_results=args.keep_results)
         print(f"{rec['command']}: {_minutes(rec['wall_s'])}, rc {rec['rc']}, {rec['pytest'] or 'no pytest summary'}")
         records.append(rec)
         write_atomic(RECORDS, json.dumps(records, indent=1) + "\n")

@@ -246,8 +246,66 @@ BRACKETS = {  # name -> metric -> (low, high); the hedge is judged on the split 
 }
 
 
-def reference_samples(lib, k: int = 30, seed: int = 2) -> dict[str, np.ndarray]:
-    """``name -> (64, k, T, C)`` samples of every reference row for the 64 tuples in (intent, intensity) order."""
+# What the reference rows are a function of besides the library's evaluation set: the design, screening and
+# simulation code that draws fresh realizations (hashed into the cache key, so an edit there recomputes).
+_REFERENCE_SOURCES = ("library", "sim", "actuation", "safety.py", "evaluation/distribution.py", "assets/trunk.xml")
+
+
+def _reference_key(lib, k: int, seed: int) -> str:
+    import mujoco
+
+    from jgrounding import io
+    from jgrounding.library import designs
+
+    ev = lib.evaluation
+    files = []
+    for name in _REFERENCE_SOURCES:
+        path = io.package_file(name)
+        files += sorted(path.rglob("*.py")) if path.is_dir() else [path]
+    arrays = [np.ascontiguousarray(a).tobytes() for a in (ev.u, ev.intent, ev.intensity, ev.variant)]
+    return io.content_key(
+        "reference_samples v1",
+        str(designs.of_library(lib).version),
+        str(k),
+        str(seed),
+        mujoco.__version__,
+        np.__version__,
+        *arrays,
+        *files,
+    )
+
+
+def reference_samples(lib, k: int = 30, seed: int = 2, *, cache: bool = True) -> dict[str, np.ndarray]:
+    """``name -> (64, k, T, C)`` samples of every reference row for the 64 tuples in (intent, intensity) order.
+
+    Drawing them screens every fresh realization in simulation (about a minute on 2 cores), and they are a pure
+    function of the evaluation set, the design and the code that draws them: with ``cache`` they are kept in
+    :func:`jgrounding.io.data_cache_dir` under a content hash of all of those (written atomically), so a
+    second call (``make ablation`` then ``experiments.references``) loads them instead."""
+    import io as _io
+
+    from jgrounding.io import data_cache_dir, write_atomic
+
+    folder = data_cache_dir() if cache and lib.evaluation is not None else None
+    path = None if folder is None else folder / f"reference_samples-{_reference_key(lib, k, seed)[:24]}.npz"
+    if path is not None and path.exists():
+        try:
+            with np.load(path) as f:
+                return {name: f[name] for name in f.files}
+        except (OSError, ValueError):  # a damaged entry: draw again and replace it
+            pass
+    out = _draw_reference_samples(lib, k, seed)
+    if path is not None:
+        buf = _io.BytesIO()
+        np.savez(buf, **out)
+        try:
+            write_atomic(path, buf.getvalue())
+        except OSError:  # a read-only cache: the result stands, it is only not kept
+            pass
+    return out
+
+
+def _draw_reference_samples(lib, k: int, seed: int) -> dict[str, np.ndarray]:
     import functools
 
     from jgrounding.library import BuildConfig, designs

@@ -104,3 +104,14 @@ def test_a_file_written_before_the_interleaved_time_still_loads(recorded):
     data["rows"]["tuple_spline_rf"]["time_ms_typo"] = 1.0  # an unknown field is still refused
     with pytest.raises(ValueError, match="expected the fields"):
         ablation_result.from_json(json.dumps(data))
+
+
+def test_a_file_written_before_physics_samples_says_every_sample_was_simulated(recorded):
+    data = json.loads(ablation_result.to_json(recorded))
+    data["config"]["eval"].pop("physics_samples", None)  # the field came with issue #37
+    back = dataclasses.replace(ablation_result.from_json(json.dumps(data)), per_sample_rms=recorded.per_sample_rms)
+    assert back.config.eval.physics_samples == back.config.eval.num_samples
+    assert "every generated sample (K_div = 30 × 64 per method and seed) simulated" in ablation_report.render(back)
+    data["config"]["eval"]["physics_samples"] = 10
+    sub = dataclasses.replace(ablation_result.from_json(json.dumps(data)), per_sample_rms=recorded.per_sample_rms)
+    assert "the first 10 of each tuple's K_div = 30 i.i.d. samples" in ablation_report.render(sub)

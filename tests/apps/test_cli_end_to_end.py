@@ -98,8 +98,18 @@ def test_quick_ablation_end_to_end(tmp_path):
     # --steps 30 and K = 2 instead of the quick config's 300 and 8: the test checks the whole path and the rows,
     # not what 300 steps learn (the CNNs are deterministic regressors either way, the RF samples noise either
     # way); K = 2 (one sample of each variant) quarters the simulated samples and the reference rows' fresh
-    # realizations
-    argv = ["--quick", "--steps", "30", "--set", "eval.num_samples=2", "--out", str(tmp_path)]
+    # realizations; eval.physics_samples=1: the physics columns simulate the first of each tuple's 2 samples
+    argv = [
+        "--quick",
+        "--steps",
+        "30",
+        "--set",
+        "eval.num_samples=2",
+        "--set",
+        "eval.physics_samples=1",
+        "--out",
+        str(tmp_path),
+    ]
     p = run("experiments.ablation", *argv, timeout=900)
     assert p.returncode == 0, p.stderr[-2000:]
     res = ablation_result.load(tmp_path)
@@ -114,7 +124,7 @@ def test_quick_ablation_end_to_end(tmp_path):
     }
     for r in rows.values():
         assert 0.0 <= r.success[0] <= 1.0 and 0.0 <= r.physics.feasible[0] <= 1.0 and r.time_ms > 0
-        assert r.physics.samples == 64 * 2 * 2  # every generated sample simulated (K_div x 64 x seeds)
+        assert r.physics.samples == 64 * 1 * 2  # the first physics_samples of K_div, x 64 tuples x seeds
     cnn_div = max(rows[m].diversity[0] for m in rows if m.endswith("cnn"))
     assert cnn_div < 1e-6 < rows["tuple_spline_rf"].diversity[0]  # RF beats the CNNs on diversity
     assert (tmp_path / "ablation.md").read_text().count("|") > 50

@@ -1,5 +1,7 @@
 """Benchmark v3 (SPEC §6): the distribution metrics rank the known references right before any method."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -72,3 +74,28 @@ def test_compare_gives_a_test_and_an_interval():
     c = D.compare([0.80, 0.70, 0.75, 0.78, 0.72], [0.76, 0.74, 0.73, 0.79, 0.71])
     assert c["verdict"] == "not resolved" and c["ci95"][0] < 0 < c["ci95"][1]
     assert D.mean_std([1.0, 2.0, 3.0]) == (2.0, 1.0)  # ddof = 1
+
+
+def test_reference_samples_are_cached_by_content(lib, tmp_path, monkeypatch):
+    """Drawn once per content (the evaluation set, k, seed, the code and MuJoCo that draw them), then loaded."""
+    monkeypatch.setenv("JGROUNDING_CACHE", str(tmp_path))
+    calls = []
+
+    def draw(lib_, k, seed):
+        calls.append((k, seed))
+        return {"fresh_replay": np.full((2, k, 3, 4), seed, np.float32), "hedge": np.zeros((2, k, 3, 4), np.float32)}
+
+    monkeypatch.setattr(D, "_draw_reference_samples", draw)
+    first = D.reference_samples(lib, k=3, seed=5)
+    again = D.reference_samples(lib, k=3, seed=5)
+    assert calls == [(3, 5)] and list(again) == ["fresh_replay", "hedge"]
+    assert all(np.array_equal(first[n], again[n]) for n in first)
+    assert len(list((tmp_path / "data").glob("reference_samples-*.npz"))) == 1
+    D.reference_samples(lib, k=3, seed=6)  # another seed, another entry
+    D.reference_samples(lib, k=3, seed=5, cache=False)  # not cached: drawn again
+    assert calls == [(3, 5), (3, 6), (3, 5)]
+    other = dataclasses.replace(lib, evaluation=dataclasses.replace(lib.evaluation, u=lib.evaluation.u[::-1].copy()))
+    assert D._reference_key(other, 3, 5) != D._reference_key(lib, 3, 5)  # another evaluation set
+    monkeypatch.setenv("JGROUNDING_CACHE", "off")
+    D.reference_samples(lib, k=3, seed=5)
+    assert calls[-1] == (3, 5) and len(calls) == 4
