@@ -24,7 +24,17 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from experiments.bench_sample import BATCH, PEER_END, PEER_START, median_s, network_ms
+from experiments.bench_sample import (
+    BATCH,
+    PEER_END,
+    PEER_START,
+    cpu_isa,
+    cpu_model,
+    flops_per_sample,
+    matmul_gflops,
+    median_s,
+    network_ms,
+)
 from jgrounding import load_library
 from jgrounding.actuation import splines
 from jgrounding.evaluation import latency
@@ -35,6 +45,7 @@ from jgrounding.policy import sampling
 ROOT = Path(__file__).resolve().parent.parent
 STEPS = 50
 GOALS = {"single": 7.0, "batch": 1.5}  # torch.compile / jg.sample at S = 50 (issue #25)
+SHARE_GOAL = 0.70  # jg.sample's achieved GFLOP/s at 1,920 over the machine's matmul rate on the same shapes (#37)
 
 
 def export(model: sampling.Model, intent, intensity, path: Path, eps: np.ndarray) -> np.ndarray:
@@ -121,6 +132,19 @@ def main(argv=None) -> int:
     print(f"network + spline alone, S={STEPS}: {floor:.3f} ms", flush=True)
     parity = float(np.abs(np.asarray(peer["parity_u"]) - u_jax).max())
     single, batch = (before[0] + after[0]) / 2, (before[1] + after[1]) / 2
+    rate = matmul_gflops(model, STEPS)  # the machine's JAX matmul rate on the network's shapes, measured now
+    gflop = BATCH * flops_per_sample(model, STEPS) / 1e9
+    achieved = gflop / (batch / 1e3)
+    share = achieved / rate
+    print(
+        f"jg.sample {BATCH}: {gflop:.2f} GFLOP in {batch:.1f} ms = {achieved:.1f} GFLOP/s, {100 * share:.0f} % of the "
+        f"matmul rate on the same shapes ({rate:.1f} GFLOP/s; goal >= {100 * SHARE_GOAL:.0f} %)",
+        flush=True,
+    )
+    machine = (
+        f"{os.cpu_count()} cores of {cpu_model()} ({cpu_isa()}; XLA_FLAGS={os.environ.get('XLA_FLAGS') or '(none)'}, "
+        f"ATEN_CPU_CAPABILITY={os.environ.get('ATEN_CPU_CAPABILITY') or '(default)'})"
+    )
     w = f", guidance w = {model.guidance:g} (2 rows per sample)" if model.guidance else ""
     rows = [
         ("`jg.sample` (before the peers)", before[0], before[1]),
@@ -133,8 +157,8 @@ def main(argv=None) -> int:
         "",
         "### PyTorch peers, same run (`make bench-peer`, experiments/bench_peer.py)",
         "",
-        f"S = {STEPS} Euler, {Path(model.name).name}{w}; one run, one after the other on this machine (load "
-        f"average {load:.2f} at the start, {os.cpu_count()} cores, torch threads {peer['threads']}). PyTorch runs "
+        f"S = {STEPS} Euler, {Path(model.name).name}{w}; one run, one after the other on {machine} (load "
+        f"average {load:.2f} at the start, torch threads {peer['threads']}). PyTorch runs "
         f"the same network and precomputation from the exported weights (peer_torch.py; clamp only, no slew "
         f"limit); medians of {args.reps} single calls and {args.batch_reps} calls of {BATCH}. Parity: from the "
         f"same noise, JAX and PyTorch trajectories differ by at most {parity:.1e}. torch.compile took "
@@ -149,6 +173,11 @@ def main(argv=None) -> int:
         f"| eager | {peer['eager_single_ms'] / single:.1f}x | {peer['eager_batch_ms'] / batch:.2f}x | |",
         f"| `torch.compile` | {peer['compiled_single_ms'] / single:.1f}x | {peer['compiled_batch_ms'] / batch:.2f}x "
         f"| >= {GOALS['single']:g}x single, >= {GOALS['batch']:g}x {BATCH} |",
+        "",
+        f"The matmul rate on the network's own shapes, measured in this run (`bench_sample.matmul_gflops`): "
+        f"{rate:.1f} GFLOP/s. `jg.sample` at {BATCH}: {gflop:.2f} GFLOP in {batch:.1f} ms = {achieved:.1f} GFLOP/s, "
+        f"**{100 * share:.0f} %** of it (goal >= {100 * SHARE_GOAL:.0f} %: "
+        f"{'met' if share >= SHARE_GOAL else 'not met'}).",
         "",
         f"The single-sample goal needs `jg.sample` within {peer['compiled_single_ms'] / GOALS['single']:.3f} ms "
         f"(torch.compile / {GOALS['single']:g}). The network and spline of one trajectory alone (no gate, no host "

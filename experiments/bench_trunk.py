@@ -336,7 +336,7 @@ def screening_latency(say, reps: int = 20) -> None:
 
 
 def ablation_rollouts(
-    k_div: int = 30,
+    per_tuple: int | None = None,
     seeds: int = 5,
     deterministic: int = 3,
     generative: int = 3,
@@ -344,16 +344,19 @@ def ablation_rollouts(
     library: int = 256,
     references: int = 3 * 64,
 ) -> int:
-    """Distinct trajectories ``make ablation`` simulates with its defaults: every sample of the generative
-    rows (DDPM, RF, physics-aware RF), one per tuple for the deterministic CNNs (their K_div copies are
-    identical and simulated once), the physics-aware fine-tuning's screened candidates, the library once
-    (held-out references and the shape tolerance) and the reference rows."""
-    if candidates is None:
-        from jgrounding.training.physics import PhysicsConfig
+    """Distinct trajectories ``make ablation`` simulates with its defaults: the first ``per_tuple`` samples of each
+    tuple of the generative rows (DDPM, RF, physics-aware RF; default ``EvalConfig.physics_samples`` of K_div), one
+    per tuple for the deterministic CNNs (their copies are identical and simulated once), the physics-aware
+    fine-tuning's screened candidates, the library once (held-out references and the shape tolerance) and the
+    reference rows."""
+    from jgrounding.config import EvalConfig, PhysicsConfig
 
+    if per_tuple is None:
+        per_tuple = min(EvalConfig().physics_samples, EvalConfig().num_samples)
+    if candidates is None:
         cfg = PhysicsConfig()
         candidates = cfg.rounds * 64 * cfg.candidates
-    return seeds * (64 * (deterministic + generative * k_div) + candidates) + library + references
+    return seeds * (64 * (deterministic + generative * per_tuple) + candidates) + library + references
 
 
 def ablation_throughput(pool, say, k_div: int = 30) -> None:
@@ -379,7 +382,7 @@ def ablation_throughput(pool, say, k_div: int = 30) -> None:
         rate[engine] = res["simulated"] / res["seconds"]
         say(f"| {engine} | {rate[engine]:,.0f} | {res['seconds']:.1f} |")
     auto = rate[sim.resolve_engine("auto")]
-    n = ablation_rollouts(k_div)
+    n = ablation_rollouts()
     say("")
     say(f"make ablation (defaults) simulates {n:,} distinct trajectories: {n / auto:.0f} s at the auto engine's rate.")
     try:
