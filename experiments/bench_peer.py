@@ -109,6 +109,11 @@ def main(argv=None) -> int:
     p.add_argument("--python", default=str(ROOT / ".venv-peer" / "bin" / "python"), help="the PyTorch environment")
     p.add_argument("--reps", type=int, default=200)
     p.add_argument("--batch-reps", type=int, default=5)
+    p.add_argument(
+        "--out",
+        default=str(ROOT / "results" / "bench_sample.md"),
+        help="the file whose peer block is written (e.g. another machine's or ISA's record beside the default)",
+    )
     args = p.parse_args(argv)
     if not Path(args.python).exists():
         raise SystemExit(f"{args.python} not found: `make bench-peer` creates .venv-peer with CPU PyTorch")
@@ -189,7 +194,7 @@ def main(argv=None) -> int:
     ]
     block = "\n".join(lines)
     print(block)
-    out = ROOT / "results" / "bench_sample.md"
+    out = Path(args.out)
     text = out.read_text() if out.exists() else ""
     if PEER_START in text and PEER_END in text:
         text = text[: text.index(PEER_START)] + block + text[text.index(PEER_END) + len(PEER_END) :]

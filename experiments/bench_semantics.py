@@ -569,7 +569,8 @@ def peer_comparison(splits: dict, python, n: int = PEER_TEXTS, reps: int = PEER_
         "### PyTorch peer of the encoder, same run (`make bench-peer`, experiments/peer_torch_encoder.py)",
         "",
         f"CPU: {cpu_model()} ({cpu_isa()}), {os.cpu_count()} cores, load average {load:.2f} at the start; "
-        f"PyTorch {peer['torch']} with {peer['threads']} threads ({peer['interop_threads']} inter-op), "
+        f"PyTorch {peer['torch']} with {peer['threads']} threads ({peer['interop_threads']} inter-op; "
+        f"ATEN_CPU_CAPABILITY: {os.environ.get('ATEN_CPU_CAPABILITY') or 'default'}), "
         f"JAX {jax.__version__} (XLA_FLAGS: {os.environ.get('XLA_FLAGS') or 'none'}). {len(texts)} texts spread "
         f"evenly over the v2 and plain test splits ({lengths.min()} to {lengths.max()} tokens, median "
         f"{np.median(lengths):g}; our buckets median {typical}), each alone, warm. Ours and the peer alternate pass "

@@ -33,3 +33,28 @@ def test_the_matmul_rate_is_measured_on_the_networks_own_shapes(monkeypatch):
     assert rate > 0
     flop = bench_sample.flops_per_sample(model, 3) * 8  # the sampler's FLOPs of 8 samples at S = 3
     assert abs(rate * 1e9 * seen["s"] - flop) / flop < 1e-9
+
+
+def test_the_bfloat16_trial_halves_the_weights_and_samples_within_the_bounds():
+    """experiments.bench_bf16: the trial model stores every float weight as bfloat16 (half the bytes), samples
+    through the same gate, and stays close to the float32 model from the same key; its weights-as-argument program
+    gives the float32 model's own network output."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from experiments import bench_bf16
+    from jgrounding import safety
+
+    ms = bench_bf16.models()
+    f32, half = ms["float32"], ms["bfloat16 storage"]
+    assert {x.dtype for x in jax.tree.leaves(half.trained.params) if jnp.issubdtype(x.dtype, jnp.floating)} == {
+        jnp.dtype(jnp.bfloat16)
+    }
+    assert 1.9 < bench_bf16.weight_bytes(f32) / bench_bf16.weight_bytes(half) <= 2.0
+    a = f32.sample(jax.random.key(3), "greeting", "moderate", 4)
+    b = half.sample(jax.random.key(3), "greeting", "moderate", 4)
+    assert safety.is_safe(b) and 0 < np.abs(a - b).max() < 0.2
+    call, args = bench_bf16.weights_as_arguments(f32, jnp.float32)
+    out = np.asarray(call(*args[0]))
+    assert out.shape == (1, 150, 4) and np.isfinite(out).all()
