@@ -251,7 +251,9 @@ BRACKETS = {  # name -> metric -> (low, high); the hedge is judged on the split 
 _REFERENCE_SOURCES = ("library", "sim", "actuation", "safety.py", "evaluation/distribution.py", "assets/trunk.xml")
 
 
-def _reference_key(lib, k: int, seed: int) -> str:
+def reference_key(lib, k: int, seed: int) -> str:
+    """The content hash :func:`reference_samples` caches under: the evaluation set's arrays, the design version,
+    ``k``, ``seed``, MuJoCo's and numpy's versions and every source file in :data:`_REFERENCE_SOURCES`."""
     import mujoco
 
     from jgrounding import io
@@ -287,7 +289,7 @@ def reference_samples(lib, k: int = 30, seed: int = 2, *, cache: bool = True) ->
     from jgrounding.io import data_cache_dir, write_atomic
 
     folder = data_cache_dir() if cache and lib.evaluation is not None else None
-    path = None if folder is None else folder / f"reference_samples-{_reference_key(lib, k, seed)[:24]}.npz"
+    path = None if folder is None else folder / f"reference_samples-{reference_key(lib, k, seed)[:24]}.npz"
     if path is not None and path.exists():
         try:
             with np.load(path) as f:

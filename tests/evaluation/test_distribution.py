@@ -95,7 +95,7 @@ def test_reference_samples_are_cached_by_content(lib, tmp_path, monkeypatch):
     D.reference_samples(lib, k=3, seed=5, cache=False)  # not cached: drawn again
     assert calls == [(3, 5), (3, 6), (3, 5)]
     other = dataclasses.replace(lib, evaluation=dataclasses.replace(lib.evaluation, u=lib.evaluation.u[::-1].copy()))
-    assert D._reference_key(other, 3, 5) != D._reference_key(lib, 3, 5)  # another evaluation set
+    assert D.reference_key(other, 3, 5) != D.reference_key(lib, 3, 5)  # another evaluation set
     monkeypatch.setenv("JGROUNDING_CACHE", "off")
     D.reference_samples(lib, k=3, seed=5)
     assert calls[-1] == (3, 5) and len(calls) == 4
