@@ -42,7 +42,8 @@ class Scores:
 
 @dataclasses.dataclass(frozen=True)
 class Physics:
-    """The physics columns of one row: every sample simulated on the trunk against the held-out references."""
+    """The physics columns of one row: the simulated samples (``EvalConfig.physics_samples`` of each tuple's K_div)
+    rolled out on the trunk against the held-out references."""
 
     shape_rms_m: MeanStd  # backbone RMS (over time and the 11 backbone points) to the reference's motion, m
     shape_success: MeanStd  # fraction of all samples within ShapeTolerance.tau_m

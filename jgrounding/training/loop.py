@@ -1,4 +1,5 @@
-"""Compiled training (Table I): AdamW 1e-3, batch 8, 10,000 steps; seeds trained at once with vmap.
+"""Compiled training (Table I): AdamW 1e-3, batch 8, 10,000 steps; every seed at once (a compiled program per
+seed, the seeds in threads; ``vmap`` over a device mesh).
 
 ``state, metrics = step(state, key)`` is one AdamW update on a random batch; :func:`train` runs it in
 chunks of ``lax.scan`` (a progress bar advances per chunk, and a checkpoint can be written between

@@ -2,7 +2,7 @@
 registry's recipes (:func:`make`: ``fit`` or the physics-aware fine-tuning of a trained base method).
 
 Every function returns a :class:`~jgrounding.generators.trained.Trained` whose parameters carry one leading
-axis per seed, trained at once with vmap by the compiled loop of :mod:`jgrounding.training.loop`.
+axis per seed, trained at once by the compiled loop of :mod:`jgrounding.training.loop`.
 """
 
 from __future__ import annotations
@@ -69,7 +69,8 @@ def fit(
     mesh=None,
     model: ModelConfig = ModelConfig(),
 ) -> Trained:
-    """Train ``method`` from scratch on ``library.train`` for every seed at once (vmap); returns :class:`Trained`.
+    """Train ``method`` from scratch on ``library.train`` for every seed at once (:func:`loop.make_chunk`); returns
+    :class:`Trained`.
 
     ``mesh``: split the seeds over the devices of a :func:`jgrounding.training.distributed.make_mesh` mesh.
     """
