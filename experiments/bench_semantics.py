@@ -5,7 +5,8 @@ texts and eight kinds of texts that call for no motion), the plainly worded ``as
 the frozen blind bench of #34, ``assets/semantics_eval_v3/bench.jsonl`` (nine kinds of texts that call for no motion
 and contrast texts that reject one motion and choose another; this script is the only reader of that file). The v3
 bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
-the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`), so the rule's effect is read off one run.
+the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
+decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
 Three reducers run in the same process, each text grounded alone, warm (``semantics.warmup``: every token
 bucket compiled before timing):
 
@@ -25,7 +26,7 @@ share acted on, texts ranked by confidence) is saved as ``results/semantics_risk
 The PyTorch peer (issue #34 item 3), first in the same run: with ``--peer-python PATH`` (default
 ``.venv-peer/bin/python`` where it exists, else skipped with a note), a sample of the test splits' texts is tokenized
 by us and, with the weights of the encoder jg.ground runs, exported to experiments/peer_torch_encoder.py, which
-rebuilds MiniLM in PyTorch and times it eager and under ``torch.compile``; our encoder alone and ``jg.ground`` are
+rebuilds MiniLM in PyTorch and times it eager and under ``torch.compile`` (``--no-peer`` skips it); our encoder alone and ``jg.ground`` are
 timed on the same texts, pass by pass in alternation with it (:func:`peer_comparison`). The embeddings must agree
 (cosine >= 0.999 for every text, else :class:`ParityError`). The ratios, the achieved GFLOP/s of both against a
 matmul rate measured in the same run, and the CPU go into the peer block of ``results/bench_semantics.md`` (between
@@ -53,6 +54,7 @@ from jgrounding import semantics
 from jgrounding.io import write_atomic
 from jgrounding.semantics import calibration, embedded, encoder, features
 from jgrounding.semantics import head as semantic_head
+from jgrounding.semantics.nomotion import LEARNED
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -67,7 +69,7 @@ REDUCERS = {
     "old": "first trained head (#15)",
     "cues": "cue-list reducer (baseline)",
 }
-NO_RULE = "new, no rule"  # the shipped head without the no-motion decision (v3 bench, accuracy only)
+NO_RULE = "new, no rule"  # the shipped head without the no-motion decision, rule and detector (v3 bench, accuracy only)
 RESULTS = ROOT / "results"
 TIMING_PASSES = 3  # per reducer, in rotated order (see main)
 GOALS = {
@@ -738,11 +740,16 @@ def parse_args(argv=None):
         action="store_true",
         help="only the PyTorch peer (1-2 min): update the peer section of results/bench_semantics.md and .json",
     )
+    p.add_argument(
+        "--no-peer", action="store_true", help="skip the PyTorch peer (its section of the results is kept as it was)"
+    )
     p.add_argument("--peer-texts", type=int, default=PEER_TEXTS, help="texts sampled from the test splits")
     p.add_argument("--peer-reps", type=int, default=PEER_REPS, help="rounds of one timed pass each, ours and peer")
     p.add_argument("--peer-compile-timeout", type=float, default=PEER_COMPILE_TIMEOUT_S, help="seconds")
     args = p.parse_args(argv)
-    if args.peer_python is None and PEER_PYTHON.exists():
+    if args.no_peer and (args.peer_only or args.peer_python):
+        p.error("--no-peer skips the peer: drop --peer-only and --peer-python")
+    if args.peer_python is None and PEER_PYTHON.exists() and not args.no_peer:
         args.peer_python = str(PEER_PYTHON)
     return args
 
@@ -766,7 +773,7 @@ def main(argv=None) -> int:
     peer = None
     if args.peer_python is None:
         print(
-            f"PyTorch peer skipped: {PEER_PYTHON.relative_to(ROOT)} not found and no --peer-python given "
+            f"PyTorch peer skipped: --no-peer, or {PEER_PYTHON.relative_to(ROOT)} not found and no --peer-python given "
             "(`make .venv-peer/.installed` makes it; the peer section of the results is kept as it was)"
         )
         if args.peer_only:
@@ -842,10 +849,12 @@ def main(argv=None) -> int:
             for s in sorted({it["style"] for it in items}):
                 group = [i for i, it in enumerate(items) if it["style"] == s]
                 res[(name, split, s)] = metrics([items[i] for i in group], [preds[i] for i in group])
-            if name == "new":
+            if name == "new":  # held by the rule, and by the learned detector
                 rule_held = {s: 0 for s in {it["style"] for it in items}}
+                learned_held = dict(rule_held)
                 for it, g in zip(items, preds):
-                    rule_held[it["style"]] += bool(g.no_motion)
+                    rule_held[it["style"]] += bool(g.no_motion) and g.no_motion != LEARNED
+                    learned_held[it["style"]] += g.no_motion == LEARNED
     batch = [it["text"] for it in splits["v2 test"]]
     jg.ground_many(batch)  # compiles (or loads) the batch programs outside the timing, as warmup() does for one text
     batched = []
@@ -895,19 +904,22 @@ def main(argv=None) -> int:
             "",
             "Columns: n; intent = intent accuracy on the contrast texts; acted = share of them acted on; none held = "
             "share of no-motion texts held; conf. wrong = acted on with the wrong intent (share of contrast texts); "
-            "rule = texts the no-motion rule held (`new` only). `new, no rule`: the shipped head without the rule.",
+            "rule, detector = texts the no-motion rule held, and texts the learned no-motion detector held (`new` "
+            "only). `new, no rule`: the shipped head without the no-motion decision (rule and detector).",
             "",
-            "| reducer | style | n | intent | acted | none held | conf. wrong | rule |",
-            "|---|---|---|---|---|---|---|---|",
+            "| reducer | style | n | intent | acted | none held | conf. wrong | rule | detector |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         styles = ["all", *sorted({it["style"] for it in items})]
         for name in ["new", NO_RULE, "old", "cues"]:
             for s in styles:
                 r = res[(name, split, s)]
                 held = sum(rule_held.values()) if s == "all" else rule_held[s]
+                learned = sum(learned_held.values()) if s == "all" else learned_held[s]
                 lines.append(
                     f"| {name} | {'**all**' if s == 'all' else s} | {r['n']} | {_fmt(r['intent'])} | {_fmt(r['acted'])} "
-                    f"| {_fmt(r['none_held'])} | {_fmt(r['confident_wrong'])} | {held if name == 'new' else ''} |"
+                    f"| {_fmt(r['none_held'])} | {_fmt(r['confident_wrong'])} | {held if name == 'new' else ''} "
+                    f"| {learned if name == 'new' else ''} |"
                 )
         lines.append("")
     lines += [
@@ -996,6 +1008,7 @@ def main(argv=None) -> int:
         "load_average": [load[0], os.getloadavg()[0]],
         "cpu": cpu_model(),
         "v3_rule_held": rule_held if v3 else {},
+        "v3_detector_held": learned_held if v3 else {},
         "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
         "batched_ms_per_response": batched_ms,
         "breakdown": parts,

@@ -17,7 +17,9 @@ shipped. The test splits are never read here. Deterministic: fixed keys and seed
 features are cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span code), so re-runs skip
 the encoder; the "tuned" option (top encoder layers trained with the head) takes about 8 minutes on 2 cores.
 A new head makes the nearest-neighbour table (``jgrounding/assets/semantic_knn.npz``) stale: it is ignored until
-``python -m tools.semantics_knn --write`` rebuilds it for the new head.
+``python -m tools.semantics_knn --write`` rebuilds it for the new head; so is the learned no-motion detector
+(``jgrounding/assets/nomotion_detector.npz``, which reads the head's sentence vectors) until
+``python -m tools.train_nomotion`` retrains it.
 """
 
 from __future__ import annotations

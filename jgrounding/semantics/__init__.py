@@ -6,9 +6,10 @@ cue-list reducer: Eq. (3) with cosine prototypes; the baseline) and ``mllm`` (an
 Eq. (4), falling back to embedded). A configured MLLM also takes over embedded groundings below the
 confidence threshold. Every backend's grounding then passes the explicit no-motion decision
 (:mod:`jgrounding.semantics.nomotion`): a text that rules the motion out, orders the trunk to keep still, is
-addressed to someone else or only describes activity comes back held (``confident=False``, ``no_motion`` its kind,
-``reason`` why), whatever motion words it contains. Apps do not drive the trunk on a non-confident grounding unless
-forced: they fall back to :data:`HOLD_STILL`.
+addressed to someone else or only describes activity (the rule), or that the learned detector is confident calls
+for no motion, comes back held (``confident=False``, ``no_motion`` its kind, ``reason`` why), whatever motion words
+it contains. Apps do not drive the trunk on a non-confident grounding unless forced: they fall back to
+:data:`HOLD_STILL`.
 ``python -m jgrounding.semantics --write-assets`` regenerates ``jgrounding/assets/intent_embeddings.npz`` and
 ``jgrounding/assets/cue_prototypes.npz`` (the cue-list prototypes, so a fresh process does not embed them).
 """
@@ -32,8 +33,14 @@ from jgrounding.semantics.cue_reducer import (  # noqa: F401  (re-exported)
     ground_cues,
     intent_scores,
 )
-from jgrounding.semantics.embedded import MAX_CHARS, ground_embedded, ground_embedded_many  # noqa: F401
+from jgrounding.semantics.embedded import (  # noqa: F401
+    MAX_CHARS,
+    ground_embedded,
+    ground_embedded_many,
+    ground_embedded_vectors,
+)
 from jgrounding.semantics.nomotion import apply as _no_motion
+from jgrounding.semantics.nomotion import sentence_vectors as _sentence_vectors
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
 
@@ -56,8 +63,9 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
     cue-list reducer, a baseline) or ``"mllm"`` (OpenAI-compatible server; falls back to embedded with a
     logged reason). With ``escalate`` and an MLLM endpoint configured (``url=`` or ``JGROUNDING_MLLM_URL``),
     an embedded grounding below the calibrated confidence threshold is asked of the MLLM instead. A text the
-    no-motion rule holds (:mod:`jgrounding.semantics.nomotion`) comes back ``confident=False`` with
-    ``no_motion`` set and its reason, from every backend, and is not escalated.
+    no-motion decision holds (:mod:`jgrounding.semantics.nomotion`: the rule or the learned detector, which reads
+    the embedded pass's sentence vector; the other backends pay one encoder pass for it) comes back
+    ``confident=False`` with ``no_motion`` set and its reason, from every backend, and is not escalated.
     Empty or non-string input raises; nonsense returns ``confident=False`` with a reason.
     """
     text = _checked(text)
@@ -69,10 +77,12 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
 
     if backend == "mllm":
         return _no_motion(text, mllm.ground_mllm(text, **mllm_options))
-    g = _no_motion(text, ground_embedded(text))
+    (g,), vectors = ground_embedded_vectors([text])
+    vector = None if vectors is None else vectors[0]
+    g = _no_motion(text, g, vector=vector)
     if g.confident or g.no_motion or not escalate or not mllm_configured(**mllm_options):
         return g
-    return _no_motion(text, mllm.ground_mllm(text, fallback=g, **mllm_options))
+    return _no_motion(text, mllm.ground_mllm(text, fallback=g, **mllm_options), vector=vector)
 
 
 def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
@@ -88,8 +98,12 @@ def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
         raise ValueError(f"unknown backend {backend!r} for ground_many; valid backends: embedded, cues")
     texts = [_checked(t) for t in texts]
     if backend == "cues":
-        return [_no_motion(t, ground_cues(t)) for t in texts]
-    return [_no_motion(t, g) for t, g in zip(texts, ground_embedded_many(texts))]
+        groundings, vectors = [ground_cues(t) for t in texts], _sentence_vectors(texts) if texts else None
+    else:
+        groundings, vectors = ground_embedded_vectors(texts)
+    if vectors is None:
+        return [_no_motion(t, g) for t, g in zip(texts, groundings)]
+    return [_no_motion(t, g, vector=v) for t, g, v in zip(texts, groundings, vectors)]
 
 
 def warmup(max_tokens: int = 128) -> None:

@@ -23,11 +23,11 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 MAX_CHARS = 4000  # ground() reads at most this many characters
 
 
-def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The tuned head's probabilities of many texts (intent ``(N, 17)``, intensity ``(N, 4)``, reason ``(N, R)``):
-    one compiled program per batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head
-    together, with the head's nearest-neighbour vote when it has one (:attr:`head.Head.knn`), so one text costs one
-    dispatch."""
+def predict_tuned_many(head, texts, batch_size: int = 64) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The tuned head's probabilities of many texts (intent ``(N, 17)``, intensity ``(N, 4)``, reason ``(N, R)``)
+    and their sentence vectors ``(N, 384)`` (what the learned no-motion detector reads): one compiled program per
+    batch (:func:`jgrounding.semantics.head.predict_tuned`), the encoder and the head together, with the head's
+    nearest-neighbour vote when it has one (:attr:`head.Head.knn`), so one text costs one dispatch."""
     texts = list(texts)
     structs = [structure.analyse(t) for t in texts]
     extras = np.stack([tuned_extras(t, st) for t, st in zip(texts, structs)])
@@ -81,14 +81,22 @@ def ground_embedded(text: str) -> Grounding:
 def ground_embedded_many(texts, head=None) -> list[Grounding]:
     """:func:`ground_embedded` of many texts at once (one batched, bucketed encoder pass); ``head``: a loaded
     :class:`jgrounding.semantics.head.Head` (default: the shipped one)."""
+    return ground_embedded_vectors(texts, head)[0]
+
+
+def ground_embedded_vectors(texts, head=None) -> tuple[list[Grounding], np.ndarray | None]:
+    """:func:`ground_embedded_many` and the texts' sentence vectors ``(N, 384)`` from the same pass, which the
+    learned no-motion detector reads (:func:`jgrounding.semantics.nomotion.apply`); None for a head that does not
+    run as one program (no tuned encoder: its vectors are not the detector's)."""
     from jgrounding.semantics import head as semantic_head
 
     texts = list(texts)
     if not texts:
-        return []
+        return [], None
     head = head or semantic_head.load()
+    vectors = None
     if head.config.features.one_program:
-        p_intent, p_intensity, p_why = predict_tuned_many(head, texts)
+        p_intent, p_intensity, p_why, vectors = predict_tuned_many(head, texts)
     else:
         x = head_inputs(head, texts)
         p_intent, p_intensity, p_why = (
@@ -123,4 +131,4 @@ def ground_embedded_many(texts, head=None) -> list[Grounding]:
                 scores=tuple(round(float(p), 4) for p in p_intent[i, : len(INTENTS)]),
             )
         )
-    return out
+    return out, vectors

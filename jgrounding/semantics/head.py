@@ -262,7 +262,9 @@ def predict_tuned(
     vector ``knn_pool``: 0 the whole text, 1 its chosen part).
 
     Args: enc_params (:meth:`Head.encoder_params`); ids, mask ``(B, L)``; pools ``(B, 4, L)``; extras ``(B, E)``
-    (:func:`jgrounding.semantics.features.tuned_extras`). Returns :func:`predict_all`'s three arrays."""
+    (:func:`jgrounding.semantics.features.tuned_extras`). Returns :func:`predict_all`'s three arrays and the
+    text's sentence vector ``(B, 384)`` (the tuned encoder's whole-text pooling), which the learned no-motion
+    detector reads (:mod:`jgrounding.semantics.nomotion`), so it needs no second encoder pass."""
     from jgrounding.semantics import encoder
 
     pooled = encoder.pool_ids(enc_params, ids, mask, pools)
@@ -270,7 +272,7 @@ def predict_tuned(
     p_intent, p_intensity, p_why = _predict_all(params, x, temperature)
     if knn is not None:
         p_intent = knn_blend(knn, p_intent, pooled[:, knn_pool], extras, knn_k)
-    return p_intent, p_intensity, p_why
+    return p_intent, p_intensity, p_why, pooled[:, 0]
 
 
 def predict(params: dict, x, temperature):
@@ -376,7 +378,7 @@ class Head:
 
     def run_tuned(self, ids, mask, pools, extras):
         """:func:`predict_tuned` with this head's encoder, parameters, temperature and vote: the one program a
-        grounding runs (intent, intensity and reason probabilities of the batch)."""
+        grounding runs (intent, intensity and reason probabilities of the batch, and its sentence vectors)."""
         return predict_tuned(
             self.encoder_params(),
             self.params,

@@ -22,7 +22,7 @@ class Grounding:
     confident: bool  # act on it: confidence reaches the calibrated threshold and the text calls for a motion
     reason: str = ""  # when not confident, why, for a person: e.g. "words addressed to someone else (reads as no behaviour, p = 0.97)", "low confidence: nodding at p = 0.41, below the calibrated threshold 0.72"
     scores: tuple = ()  # per-intent probabilities (embedded) or similarities (cues)
-    no_motion: str = ""  # the explicit no-motion rule that held it (jgrounding.semantics.nomotion.REASONS), or ""
+    no_motion: str = ""  # the no-motion decision that held it (jgrounding.semantics.nomotion.REASONS), or ""
 
     @property
     def intent_index(self) -> int:

@@ -1,14 +1,18 @@
 """The explicit no-motion decision (issue #34): hand-written texts of each kind hold with their reason whatever
-motion they name; contrast texts that choose a motion still act; the decision reaches the Responder, the CLI and
-the server alike. Every text here was written for this file (none is taken from a data file)."""
+motion they name; texts the rule's phrases miss are held by the learned detector; contrast texts that choose a
+motion and plain motion requests still act; the detector's file matches its data and head and retrains
+deterministically; the decision reaches the Responder, the CLI and the server alike. Every text here was written
+for this file (none is taken from a data file)."""
 
 import dataclasses
 
+import numpy as np
 import pytest
 
-from jgrounding.semantics import nomotion
+from jgrounding.semantics import nomotion, structure
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
+from tools import train_nomotion
 
 HOLD = {
     "rules_out": [
@@ -58,6 +62,18 @@ MOTION = [
     "Wave hello!",
     "The child is crying on the sofa; comfort her softly.",
     "She just got the job! Celebrate with a big trumpet.",
+    "A visitor has just walked in and is looking straight at the robot.",
+    "He is telling the robot about his weekend; show that you are following.",
+]
+# No motion in words the rule's phrases do not match: the learned detector holds them.
+LEARNED = [
+    "The technician has opened the side panel and is replacing a tendon cable.",
+    "Please don't do anything for now; he's concentrating on his exam.",
+    "[log] 14:02 battery at 62 %, charging",
+    "System: firmware update 3.2 installed, rebooting in ten seconds.",
+    "Last week the robot waved at every visitor; today nobody has come in yet.",
+    "He's in the middle of a phone call with his bank, frowning at the screen.",
+    "She is still filling in the form; give her a few more minutes before anything.",
 ]
 
 
@@ -80,6 +96,66 @@ def test_plain_motion_texts_are_not_held(text):
     assert nomotion.check(text) is None
 
 
+@pytest.mark.parametrize("text", LEARNED)
+def test_the_detector_holds_no_motion_texts_the_rule_misses(text):
+    assert nomotion.rule(text, structure.spans(text)) is None  # the rule lets it through
+    hold = nomotion.check(text)
+    assert hold is not None and hold.kind == nomotion.LEARNED, text
+    assert hold.reason.startswith("the text calls for no motion (learned detector, p = ")
+    assert nomotion.check(text, learned=False) is None
+
+
+def test_the_detector_is_sure_of_motion_requests_and_kept_from_contrast_texts():
+    """Plain motion requests score below its threshold; a contrast text that chooses a motion is never held by it,
+    whatever it scores (the same chosen-motion guard as the rule's)."""
+    d = nomotion.detector()
+    p = d.probability(nomotion.sentence_vectors(MOTION))
+    assert np.all(p < d.threshold), dict(zip(MOTION, p.round(3)))
+    held = nomotion.sentence_vectors(LEARNED[:1])[0]  # a vector it holds
+    assert d.probability(held[None])[0] >= d.threshold
+    for text, _ in CONTRAST:
+        assert nomotion.chosen_motion(text)
+        assert nomotion.check(text, vector=held) is None
+
+
+def test_the_shipped_detector_matches_its_training_data_and_head(head):
+    """Its recorded digests are those of today's training rows and the shipped head (else retrain it with
+    ``python -m tools.train_nomotion``), and its cross-validated false holds kept the bound it was chosen under."""
+    d = nomotion.read_detector()
+    rows = train_nomotion.training_rows()
+    assert d.meta["data_digest"] == train_nomotion.data_digest(rows), "training data changed: retrain the detector"
+    assert d.meta["head_digest"] == head.meta["params_digest"], "the head changed: retrain the detector"
+    assert nomotion.detector() is not None
+    assert d.arrays["w1"].shape == (384, train_nomotion.HIDDEN) and d.arrays["mean"].shape == (384,)
+    assert 0.0 < d.threshold < 1.0
+    assert d.meta["texts"]["no_motion"] == sum(r["label"] for r in rows) > 0
+    assert max(d.meta["cv"]["false_hold"].values()) <= train_nomotion.MAX_FALSE_HOLD
+    assert train_nomotion.CONTRAST in d.meta["cv"]["false_hold"]
+
+
+def test_training_is_deterministic(tmp_path):
+    """The same rows give the same detector, threshold and bytes (the tool's ``--check`` does this on the real
+    data, about a minute)."""
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((120, 384)).astype(np.float32)
+    label = (x[:, 0] > 0.5).astype(np.int32)
+    source = np.array(["a", "b", "c"] * 40)
+    source[label == 1] = train_nomotion.NO_MOTION
+    w = train_nomotion.weights(label, source)
+    first, second = (train_nomotion.fit(x, label, w) for _ in range(2))
+    for k in first:
+        np.testing.assert_array_equal(first[k], second[k])
+    p = train_nomotion.probability(first, x)
+    assert p[label == 1].mean() > p[label == 0].mean()
+    t = train_nomotion.choose_threshold(p, label, source)
+    assert max(train_nomotion.false_holds(p >= t, label, source).values()) <= train_nomotion.MAX_FALSE_HOLD
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    nomotion.save_detector(a, first, t, {"data_digest": "x"})
+    nomotion.save_detector(b, second, t, {"data_digest": "x"})
+    assert a.read_bytes() == b.read_bytes()
+    np.testing.assert_allclose(nomotion.read_detector(a).probability(x[:3]), p[:3], rtol=1e-5)
+
+
 def test_the_motion_words_inside_what_is_ruled_out_do_not_override_the_hold():
     """A text that names the motion it rules out, quoted or beside 'leave it', holds; the same motion chosen
     outside the ruled-out part acts."""
@@ -98,6 +174,18 @@ def test_apply_holds_a_confident_grounding_with_the_reason():
     assert nomotion.apply("Wave hello!", g) is g
 
 
+def test_a_learned_hold_keeps_the_reason_of_a_reducer_that_did_not_act():
+    g = Grounding("greeting", "moderate", 0.97, "embedded", True, "", tuple(0.01 for _ in INTENTS))
+    text = LEARNED[2]  # a log line
+    assert nomotion.apply(text, g).reason.startswith("the text calls for no motion (learned detector, p = ")
+    unsure = dataclasses.replace(g, confident=False, reason="a system or log line (reads as no behaviour, p = 0.99)")
+    held = nomotion.apply(text, unsure)
+    assert held.no_motion == nomotion.LEARNED
+    assert held.reason.startswith(
+        "a system or log line (reads as no behaviour, p = 0.99); the text calls for no motion"
+    )
+
+
 def test_ground_and_the_responder_hold_with_the_reason():
     import jgrounding as jg
     from jgrounding.policy.respond import Responder
@@ -114,10 +202,24 @@ def test_ground_and_the_responder_hold_with_the_reason():
     assert contrast.no_motion == "" and contrast.intent == "comforting"
 
 
+def test_a_learned_hold_is_the_same_from_ground_ground_many_every_backend_and_the_responder():
+    import jgrounding as jg
+    from jgrounding.policy.respond import Responder
+
+    text = LEARNED[0]
+    g = jg.ground(text)
+    assert not g.confident and g.no_motion == nomotion.LEARNED
+    assert "the text calls for no motion (learned detector, p = " in g.reason
+    assert [h.no_motion for h in jg.ground_many([text, "Wave hello!"])] == [nomotion.LEARNED, ""]
+    assert jg.ground(text, backend="cues").no_motion == nomotion.LEARNED  # the cue reducer gets the same decision
+    assert [h.no_motion for h in jg.ground_many([text], backend="cues")] == [nomotion.LEARNED]
+    d = Responder().decide(text)
+    assert d.hold and d.message().startswith("holding still: ")
+    assert "the text calls for no motion (learned detector" in d.message()
+
+
 def test_cli_and_server_agree_on_a_no_motion_text(tmp_path):
     """The CLI and the server share the Responder: the same text holds in both, with the same reason."""
-    import numpy as np
-
     from jgrounding import serving
     from jgrounding.apps import cli, export
     from jgrounding.client import Client
@@ -125,14 +227,17 @@ def test_cli_and_server_agree_on_a_no_motion_text(tmp_path):
     run = serving.Running(serving.Server(serving.Policy(None, warm=False)))
     try:
         client = Client(run.url)
-        for i, text in enumerate(["Grandpa to his grandson: 'Come here and give me a big hug!'", "Wave hello!"]):
+        texts = ["Grandpa to his grandson: 'Come here and give me a big hug!'", LEARNED[0], "Wave hello!"]
+        for i, text in enumerate(texts):
             out = tmp_path / str(i)
             assert cli.main([text, "--seed", "3", "--samples", "2", "--no-render", "--out", str(out)]) == 0
             header, _ = export.read_command_stream_csv(out / "commands.csv")
             reply = client.sample(text, num_samples=2, seed=3)
-            assert reply["hold_still"] == bool(header.get("hold_still")) == (i == 0), text
+            assert reply["hold_still"] == bool(header.get("hold_still")) == (i < 2), text
             np.testing.assert_allclose(reply["u"], np.load(out / "samples.npy"), atol=1e-6, err_msg=text)
             if i == 0:
                 assert reply["message"].startswith("holding still: the words are addressed to or meant for")
+            if i == 1:
+                assert "the text calls for no motion (learned detector" in reply["message"]
     finally:
         run.stop()
