@@ -77,8 +77,8 @@ def make_chunk(step, length: int, mesh=None):
     runs slowly, and a training step of these small networks is a chain of small operations that one program
     leaves the second core idle between; per-seed programs in threads overlap them (Table II's five seeds train
     about 1.4x faster on 2 cores, ``docs/testing.md``). The result is the seeds' own computation, the same whatever
-    the threads' order. With a ``mesh``, ``jit(vmap(scan(step)))`` with the seed axis of the state and of the losses
-    split over its devices.
+    the threads' order. On an accelerator, ``jit(vmap(scan(step)))``; with a ``mesh``, the same with the seed axis of
+    the state and of the losses split over its devices.
     """
 
     def run(state):
@@ -87,6 +87,8 @@ def make_chunk(step, length: int, mesh=None):
     if mesh is not None:
         seeds = distributed.sharding(mesh, distributed.AXIS)
         return jax.jit(jax.vmap(run), in_shardings=(seeds,), out_shardings=(seeds, seeds))
+    if jax.default_backend() != "cpu":  # an accelerator runs the batched program as one launch: keep vmap there
+        return jax.jit(jax.vmap(run))
     one = jax.jit(run)
     compiled = {}
 
