@@ -195,7 +195,7 @@ def paper() -> Config:
     10,000 steps, K_div = 30, S = 50, tau = 0.35, 10 of each tuple's 30 samples simulated, plus the physics-aware RF
     row.
     Gives results/ablation.{md,json}: every row's success, diversity, time, physics and distribution columns
-    (the shipped model through jg.sample meets the benchmark's goals; about 30 min on 2 CPU cores)."""
+    (the shipped model through jg.sample meets the benchmark's goals; about 10 min on 2 CPU cores: docs/testing.md)."""
     return Config()
 
 
