@@ -19,6 +19,7 @@ The CPU model, vector ISA and XLA_FLAGS head the output.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 from pathlib import Path
 
@@ -43,8 +44,6 @@ def models(steps: int = 50) -> dict[str, program.Model]:
     f32 = sampling.model(None if path == sampling.DEFAULT_CHECKPOINT else path)
     tr = f32.trained
     bf16 = jax.tree.map(lambda x: x.astype(jnp.bfloat16) if jnp.issubdtype(x.dtype, jnp.floating) else x, tr.params)
-    import dataclasses
-
     half = program.Model(dataclasses.replace(tr, params=bf16), f32.intent_emb, name=f"{f32.name} (bfloat16 weights)")
     return {"float32": f32, "bfloat16 storage": half}
 
@@ -53,7 +52,7 @@ def weight_bytes(model: program.Model) -> int:
     return int(sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(model.trained.params)))
 
 
-def weights_as_arguments(model: program.Model, dtype) -> tuple:
+def weights_as_arguments(model: program.Model, dtype, lib=None) -> tuple:
     """``(call, args_list)`` of one trajectory's network + spline (no gate) with the weights an argument of the
     compiled program in ``dtype``: as program constants (``jg.sample``'s programs) XLA folds a bfloat16 -> float32
     conversion at compile time and keeps float32 weights, so bfloat16 storage exists only as an argument. Compiled
@@ -68,13 +67,9 @@ def weights_as_arguments(model: program.Model, dtype) -> tuple:
 
     example = (params, np.zeros(1, np.int32), np.zeros(1, np.int32), jax.random.key(0))
     compiled = program.compile_for(jax.jit(run).lower(*example), 1)
-    rows = [jax.device_put((np.array([m], np.int32), np.array([z], np.int32))) for m, z in _tuples()]
-    return compiled, [(params, *rows[i % 64], jax.random.key(i)) for i in range(REPS)]
-
-
-def _tuples():
-    ho = load_library().heldout
-    return list(zip(ho.intent.tolist(), ho.intensity.tolist()))
+    ho = (lib or load_library()).heldout
+    rows = [jax.device_put((np.array([m], np.int32), np.array([z], np.int32))) for m, z in zip(ho.intent, ho.intensity)]
+    return compiled, [(params, *rows[i % len(rows)], jax.random.key(i)) for i in range(REPS)]
 
 
 def timing(ms: dict[str, program.Model], lib, rounds: int) -> dict[str, np.ndarray]:
@@ -88,8 +83,8 @@ def timing(ms: dict[str, program.Model], lib, rounds: int) -> dict[str, np.ndarr
             args,
         )
     f32 = ms["float32"]
-    entries["network + spline, float32 weights as an argument"] = weights_as_arguments(f32, jnp.float32)
-    entries["network + spline, bfloat16 weights as an argument"] = weights_as_arguments(f32, jnp.bfloat16)
+    entries["network + spline, float32 weights as an argument"] = weights_as_arguments(f32, jnp.float32, lib)
+    entries["network + spline, bfloat16 weights as an argument"] = weights_as_arguments(f32, jnp.bfloat16, lib)
     return latency.interleaved_ms(entries, rounds=rounds)
 
 

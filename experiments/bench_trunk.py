@@ -352,7 +352,8 @@ def ablation_rollouts(
     from jgrounding.config import EvalConfig, PhysicsConfig
 
     if per_tuple is None:
-        per_tuple = min(EvalConfig().physics_samples, EvalConfig().num_samples)
+        ev = EvalConfig()
+        per_tuple = min(ev.physics_samples, ev.num_samples)
     if candidates is None:
         cfg = PhysicsConfig()
         candidates = cfg.rounds * 64 * cfg.candidates
