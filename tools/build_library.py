@@ -16,10 +16,13 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=str(library.DEFAULT_PATH))
+    p.add_argument(
+        "--version", type=int, default=library.designs.DEFAULT_VERSION, help="the design (3, 4 or 5; see designs.py)"
+    )
     p.add_argument("--no-card", action="store_true", help="skip the Markdown card and figures")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    arrays, card = library.build(library.BuildConfig(seed=args.seed))
+    arrays, card = library.build(library.BuildConfig(seed=args.seed, version=args.version))
     path = library.save(arrays, card, args.out)
     print(
         f"wrote {path} ({card['num_train']} train / {card['num_heldout']} held-out; "
