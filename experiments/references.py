@@ -116,8 +116,9 @@ def main(argv=None) -> int:
                 "and the distribution metrics above carry the ranking."
                 if designs.of_library(lib).version == 3
                 else f". At tau = 0.45 wrong intent is {b['wrong_intent'][0.45]:.3f} (SPEC: <= 0.20). In a few split "
-                "tuples of library v4 the mean of the training realizations lies within tau of the held-out one, so "
-                "the tuple mean's gap to the oracle stays short of 0.10; the distribution metrics above separate it."
+                f"tuples of library v{designs.of_library(lib).version} the mean of the training realizations lies "
+                "within tau of the held-out one, so the tuple mean's gap to the oracle stays short of 0.10; the "
+                "distribution metrics above separate it."
             )
             if bad and lib.evaluation is not None
             else ""

@@ -53,7 +53,7 @@ class BuildConfig:
     # with another seed, never trained on; the distribution metrics score samples against it.
     eval_realizations: int = 16
     eval_seed_offset: int = 1000
-    # The design (jgrounding.library.designs): 4, the shipped library, or 3 (python -m tools.build_library --version 3).
+    # The design (jgrounding.library.designs): 5, the shipped library, or 3 / 4 (python -m tools.build_library --version N).
     version: int = designs.DEFAULT_VERSION
 
 
@@ -212,7 +212,7 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
             text_rng = np.random.default_rng([config.seed, m, z, 7])
             if config.version == 3:
                 held = int(split_rng.integers(config.realizations))
-            else:  # v4: a three-variant tuple holds out one of its doubled variant's realizations
+            else:  # v4, v5: a three-variant tuple holds out one of its doubled variant's realizations
                 held = int(split_rng.choice(design.holdable(m, plan[(m, z)])))
             taken = {int(v): iter(found[(m, z, int(v))]) for v in np.unique(plan[(m, z)])}
             for r, v in enumerate(plan[(m, z)]):

@@ -6,7 +6,7 @@ library is :data:`DEFAULT_VERSION`.
 variants split 2 + 2, the others with one; intensity levels interpolate a variant's subtle and emphatic ends.
 Its wrong-intent and far-intensity brackets do not hold (issue #38; results/library_v3/).
 
-**Library v4** (``--version 4``, the default): a code of nearly binary key poses
+**Library v4** (``--version 4``): a code of nearly binary key poses
 (:mod:`jgrounding.library.signatures_v4`, designed by ``python -m tools.design_library``) chosen per
 (intent, variant, intensity) so that every two intents at one intensity, the variants of one intent and its
 levels two or more apart are far apart in RMS, while every intent keeps its kinematic signature
@@ -23,7 +23,7 @@ subtle to emphatic. Every realization still starts at rest (key pose 0) and the 
 So a split tuple's held-out variant has fewer training realizations than another variant in 2 of 3 split
 tuples (16 of 24), not in all of them, and the tuple mean lies far from every variant.
 
-**Library v5** (``--version 5``; :mod:`jgrounding.library.signatures_v5`, ``python -m tools.design_library
+**Library v5** (``--version 5``, the default; :mod:`jgrounding.library.signatures_v5`, ``python -m tools.design_library
 --version 5``): v4's code with curiosity and beckoning given two variants again (probing from the left or the
 right; the tip curling in from either side), so 32 of the 64 tuples are split (24 two-variant, 8 three-variant).
 Why: the tuple mean passes the one-sample replay test of a split tuple only where the training mean lies within
@@ -42,7 +42,7 @@ import numpy as np
 from jgrounding.library import primitives
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
-DEFAULT_VERSION = 4
+DEFAULT_VERSION = 5
 LIBRARY_VERSIONS = {3: "3.0-rest-start", 4: "4.0-far-codes", 5: "5.0-more-splits"}  # recorded in the npz and the card
 
 

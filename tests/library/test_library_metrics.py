@@ -89,5 +89,5 @@ def test_rms_success_diversity():
 
 def test_variant_midpoint_covers_every_one_to_many_tuple(lib):
     mid = library.variant_midpoint(lib)
-    assert mid["tuples"] == 4 * int((designs.get(4).num_variants > 1).sum())  # 24 split tuples in v4
+    assert mid["tuples"] == 4 * int((designs.of_library(lib).num_variants > 1).sum()) == 32  # 32 split tuples in v5
     assert all(0.0 <= v <= 1.0 for v in mid["success"].values())

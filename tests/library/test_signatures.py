@@ -73,7 +73,7 @@ def test_playful_swing_and_celebrating_swing_side_to_side(recorded):
 
 def test_intensity_grows_the_motion(recorded):
     # Intensity is reach and tempo (SPEC §2): the tip's path grows from subtle to emphatic for every intent but
-    # resting (minimal motion at every intensity). Library v4's subtle gestures may pull as hard as emphatic ones
+    # resting (minimal motion at every intensity). Libraries v4 and v5's subtle gestures may pull as hard as emphatic ones
     # (later and slower, issue #38), so the mean pull is no longer the measure; v3 also asserted it.
     u, m, z, f = recorded
     path = f["lateral_excursion"] + f["sagittal_excursion"] + f["vertical_excursion"]

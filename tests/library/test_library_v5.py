@@ -1,6 +1,7 @@
-"""Library v4 (issue #38), asserted on the shipped library: the paper-protocol brackets at tau = 0.35 and 0.45, a
-held-out variant that is not predictable, repetitions that vary like a person's, intensity as reach and tempo in
-simulation, and library v3 still reproducible byte for byte (``--version 3``)."""
+"""Library v5 (issue #38), asserted on the shipped library: the paper-protocol brackets at tau = 0.35 and 0.45 (the
+tuple mean's gap to the oracle included, which v4 missed), a held-out variant that is not predictable, repetitions
+that vary like a person's, intensity as reach and tempo in simulation, and libraries v3 and v4 still reproducible
+byte for byte (``--version 3``, ``--version 4``)."""
 
 import hashlib
 import json
@@ -27,9 +28,9 @@ def brackets(lib):
     return library.brackets(lib)
 
 
-def test_the_shipped_library_is_v4(lib):
-    assert lib.meta["library_version"] == designs.LIBRARY_VERSIONS[4] == library.LIBRARY_VERSION
-    assert lib.meta["config"]["version"] == designs.DEFAULT_VERSION == 4
+def test_the_shipped_library_is_v5(lib):
+    assert lib.meta["library_version"] == designs.LIBRARY_VERSIONS[5] == library.LIBRARY_VERSION
+    assert lib.meta["config"]["version"] == designs.DEFAULT_VERSION == 5
 
 
 def test_paper_protocol_brackets_at_tau_035(brackets):
@@ -39,10 +40,9 @@ def test_paper_protocol_brackets_at_tau_035(brackets):
     assert b["far_intensity"] <= 0.30
     assert b["adjacent_intensity"] <= 0.80
     assert brackets["heldout_4gram_overlap"] <= 0.30
-    assert b["tuple_mean"] < b["oracle"] - 0.07  # below the oracle; SPEC's 0.10 is the next test
+    assert not library.bracket_violations(brackets)
 
 
-@pytest.mark.xfail(strict=True, reason="v4 reaches a gap of 0.078, short of SPEC §3's 0.10 (docs/library_card.md)")
 def test_tuple_mean_is_ten_points_below_the_oracle(brackets):
     assert brackets["tuple_mean"][0.35] <= brackets["oracle"][0.35] - library.TUPLE_MEAN_GAP
 
@@ -68,12 +68,12 @@ def test_the_held_out_variant_is_the_minority_in_at_most_three_quarters_of_split
         own = np.sum(train == a["variant"][j])
         split += 1
         minority += own < max(np.sum(train == v) for v in np.unique(train))
-    assert split == 24 and minority / split <= 0.75
+    assert split == 32 and minority / split <= 0.75
 
 
 def test_variant_counts_follow_the_design():
     a = np.load(library.DEFAULT_PATH)
-    d = designs.get(4)
+    d = designs.get(designs.DEFAULT_VERSION)
     for m in range(16):
         for z in range(4):
             v = np.sort(a["variant"][(a["intent"] == m) & (a["intensity"] == z)])
@@ -135,9 +135,10 @@ def jax_key(seed):
 
 
 @pytest.mark.slow
-def test_library_v3_is_still_reproducible_byte_for_byte(tmp_path):
-    card = json.loads((ROOT / "results" / "library_v3" / "library.json").read_text())
-    arrays, _ = library.build(library.BuildConfig(version=3), progress=False)
-    path = library.save(arrays, _, tmp_path / "v3.npz")
+@pytest.mark.parametrize("version", [3, 4])
+def test_earlier_libraries_are_still_reproducible_byte_for_byte(tmp_path, version):
+    card = json.loads((ROOT / "results" / f"library_v{version}" / "library.json").read_text())
+    arrays, _ = library.build(library.BuildConfig(version=version), progress=False)
+    path = library.save(arrays, _, tmp_path / f"v{version}.npz")
     assert hashlib.sha256(path.read_bytes()).hexdigest() == card["sha256"]
-    assert str(arrays["library_version"]) == card["library_version"] == designs.LIBRARY_VERSIONS[3]
+    assert str(arrays["library_version"]) == card["library_version"] == designs.LIBRARY_VERSIONS[version]
