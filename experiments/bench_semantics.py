@@ -2,9 +2,10 @@
 
 Reads the TEST splits only here (never tuned on): ``assets/semantics_eval_v2/test.jsonl`` (five styles of motion
 texts and eight kinds of texts that call for no motion), the plainly worded ``assets/semantics_eval/test.jsonl`` and
-the frozen blind bench of #34, ``assets/semantics_eval_v3/bench.jsonl`` (nine kinds of texts that call for no motion
-and contrast texts that reject one motion and choose another; this script is the only reader of that file). The v3
-bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
+the frozen blind benches of #34, ``assets/semantics_eval_v3/bench.jsonl`` (two writers) and
+``assets/semantics_eval_w3/bench.jsonl`` (a third writer, 2026-12-04): nine kinds of texts that call for no motion
+and contrast texts that reject one motion and choose another; this script is the only reader of those files. Each
+blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
 Three reducers run in the same process, each text grounded alone, warm (``semantics.warmup``: every token
@@ -62,7 +63,11 @@ SPLITS = {
     "v2 test": ROOT / "assets" / "semantics_eval_v2" / "test.jsonl",
     "plain test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
 }
-BENCH_V3 = {"v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl"}  # accuracy only, not timed
+# The frozen blind benches of #34 (accuracy only, not timed): two writers' (v3) and a third writer's (w3).
+BENCH_V3 = {
+    "v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl",
+    "w3 bench": ROOT / "assets" / "semantics_eval_w3" / "bench.jsonl",
+}
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {
     "new": "trained head, structure-aware (jg.ground)",
@@ -840,7 +845,8 @@ def main(argv=None) -> int:
     peak, peak_text = peak_gflops()
     load_pinned = os.getloadavg()[0]
     pinned = one_core_latency([it["text"] for split in splits.values() for it in split])
-    v3 = {name: read_jsonl(path) for name, path in BENCH_V3.items()}  # the only read of the frozen v3 bench
+    v3 = {name: read_jsonl(path) for name, path in BENCH_V3.items()}  # the only read of the frozen blind benches
+    rule_held, learned_held = {}, {}
     for name in [*names, NO_RULE]:
         fn = fns.get(name) or grounder(name)
         for split, items in v3.items():
@@ -850,11 +856,11 @@ def main(argv=None) -> int:
                 group = [i for i, it in enumerate(items) if it["style"] == s]
                 res[(name, split, s)] = metrics([items[i] for i in group], [preds[i] for i in group])
             if name == "new":  # held by the rule, and by the learned detector
-                rule_held = {s: 0 for s in {it["style"] for it in items}}
-                learned_held = dict(rule_held)
+                rule_held[split] = {s: 0 for s in {it["style"] for it in items}}
+                learned_held[split] = dict(rule_held[split])
                 for it, g in zip(items, preds):
-                    rule_held[it["style"]] += bool(g.no_motion) and g.no_motion != LEARNED
-                    learned_held[it["style"]] += g.no_motion == LEARNED
+                    rule_held[split][it["style"]] += bool(g.no_motion) and g.no_motion != LEARNED
+                    learned_held[split][it["style"]] += g.no_motion == LEARNED
     batch = [it["text"] for it in splits["v2 test"]]
     jg.ground_many(batch)  # compiles (or loads) the batch programs outside the timing, as warmup() does for one text
     batched = []
@@ -899,7 +905,7 @@ def main(argv=None) -> int:
     for split, items in v3.items():
         n_none = sum(it["intent"] == "none" for it in items)
         lines += [
-            f"#### {split} (assets/semantics_eval_v3/bench.jsonl, {len(items)} texts: {n_none} call for no motion in "
+            f"#### {split} ({BENCH_V3[split].relative_to(ROOT)}, {len(items)} texts: {n_none} call for no motion in "
             f"nine kinds, {len(items) - n_none} contrast texts; written blind, frozen, read only here)",
             "",
             "Columns: n; intent = intent accuracy on the contrast texts; acted = share of them acted on; none held = "
@@ -914,8 +920,8 @@ def main(argv=None) -> int:
         for name in ["new", NO_RULE, "old", "cues"]:
             for s in styles:
                 r = res[(name, split, s)]
-                held = sum(rule_held.values()) if s == "all" else rule_held[s]
-                learned = sum(learned_held.values()) if s == "all" else learned_held[s]
+                held = sum(rule_held[split].values()) if s == "all" else rule_held[split][s]
+                learned = sum(learned_held[split].values()) if s == "all" else learned_held[split][s]
                 lines.append(
                     f"| {name} | {'**all**' if s == 'all' else s} | {r['n']} | {_fmt(r['intent'])} | {_fmt(r['acted'])} "
                     f"| {_fmt(r['none_held'])} | {_fmt(r['confident_wrong'])} | {held if name == 'new' else ''} "
@@ -1007,8 +1013,8 @@ def main(argv=None) -> int:
         "latency": latency,
         "load_average": [load[0], os.getloadavg()[0]],
         "cpu": cpu_model(),
-        "v3_rule_held": rule_held if v3 else {},
-        "v3_detector_held": learned_held if v3 else {},
+        "blind_rule_held": rule_held,  # {bench: {style: texts held by the rule}}
+        "blind_detector_held": learned_held,
         "first_call_s": {"cache_warm": first_warm, "cache_cold": first_cold},
         "batched_ms_per_response": batched_ms,
         "breakdown": parts,

@@ -6,9 +6,10 @@
 The hand-written rule of :mod:`jgrounding.semantics.nomotion` holds what its phrases match and misses other
 wording; the detector learns the same decision from examples. Data (nothing else is read):
 
-- **no motion** (label 1): the texts of ``assets/semantics_eval_v3/train.jsonl`` with intent ``none`` (the blind
-  writers' nine kinds; never its ``bench.jsonl``, which only ``python -m experiments.bench_semantics`` reads);
-- **motion** (label 0): that file's contrast texts ("don't X; just Y": they choose a motion) and every motion text
+- **no motion** (label 1): the texts with intent ``none`` of ``assets/semantics_eval_v3/train.jsonl`` (two blind
+  writers' nine kinds) and ``assets/semantics_eval_w3/train.jsonl`` (a third blind writer's, the same kinds);
+  never their ``bench.jsonl``, which only ``python -m experiments.bench_semantics`` reads;
+- **motion** (label 0): those files' contrast texts ("don't X; just Y": they choose a motion) and every motion text
   of ``assets/semantics_train/*.jsonl``, the head's own training corpora (their ``none`` rows are not used).
 
 Features: the shipped head's sentence vector (the tuned encoder's whole-text pooling, computed by the same
@@ -39,6 +40,8 @@ from jgrounding.semantics import nomotion, structure
 
 ROOT = Path(__file__).resolve().parent.parent
 V3_TRAIN = ROOT / "assets" / "semantics_eval_v3" / "train.jsonl"
+W3_TRAIN = ROOT / "assets" / "semantics_eval_w3" / "train.jsonl"
+BLIND_TRAIN = (V3_TRAIN, W3_TRAIN)  # the blind writers' training splits
 TRAIN_DIR = ROOT / "assets" / "semantics_train"
 HIDDEN = 64
 WEIGHT_DECAY = 0.1
@@ -48,31 +51,35 @@ SEED = 0
 FOLDS = 5
 MAX_FALSE_HOLD = 0.01  # at most this share of each source's motion texts held on the held-out folds
 STEP = 0.0025  # the threshold grid
-CONTRAST = "v3 contrast"  # the source name of the blind contrast texts
-NO_MOTION = "v3 no motion"
+# Source names of the blind writers' texts: one source per kind, every writer's together (the false-hold bound is
+# per source, and one writer's 192 contrast texts would make it "at most one text").
+CONTRAST = "blind contrast"
+NO_MOTION = "blind no motion"
 
 
 def read_jsonl(path) -> list[dict]:
     return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
 
 
-def training_rows(v3_train=V3_TRAIN, train_dir=TRAIN_DIR) -> list[dict]:
+def training_rows(blind=None, train_dir=TRAIN_DIR) -> list[dict]:
     """The rows the detector learns from: ``{"text", "label", "source"}``, label 1 for no motion (see the
-    module docstring), in file order."""
+    module docstring), in file order. ``blind``: the blind writers' ``train.jsonl`` files (default :data:`BLIND_TRAIN`)."""
+    blind = BLIND_TRAIN if blind is None else blind
     rows = [
         {
             "text": r["text"],
             "label": int(r["intent"] == "none"),
             "source": NO_MOTION if r["intent"] == "none" else CONTRAST,
         }
-        for r in read_jsonl(v3_train)
+        for path in blind
+        for r in read_jsonl(path)
     ]
     for path in sorted(Path(train_dir).glob("*.jsonl")):
         rows += [
             {"text": r["text"], "label": 0, "source": path.name} for r in read_jsonl(path) if r["intent"] != "none"
         ]
     if not any(r["label"] for r in rows) or all(r["label"] for r in rows):
-        raise ValueError(f"training data needs no-motion and motion texts: {v3_train}, {train_dir}")
+        raise ValueError(f"training data needs no-motion and motion texts: {list(blind)}, {train_dir}")
     return rows
 
 
@@ -91,7 +98,7 @@ def weights(label: np.ndarray, source: np.ndarray) -> np.ndarray:
     parts = [
         (label == 1, 0.5),
         ((label == 0) & (source == CONTRAST), 0.25),
-        ((label == 0) & (source != CONTRAST), 0.25),
+        ((label == 0) & ~(source == CONTRAST), 0.25),
     ]
     for mask, share in parts:
         if mask.any():
@@ -190,7 +197,7 @@ def train_detector(rows) -> tuple[dict, float, dict]:
     source = np.array([r["source"] for r in rows])
     print(
         f"{len(rows)} texts: {label.sum()} no motion, {(source == CONTRAST).sum()} contrast, "
-        f"{((label == 0) & (source != CONTRAST)).sum()} corpus motion texts; encoding",
+        f"{((label == 0) & ~(source == CONTRAST)).sum()} corpus motion texts; encoding",
         flush=True,
     )
     x = nomotion.sentence_vectors(texts)
@@ -215,7 +222,7 @@ def train_detector(rows) -> tuple[dict, float, dict]:
         "texts": {
             "no_motion": int(label.sum()),
             "contrast": int((source == CONTRAST).sum()),
-            "corpus_motion": int(((label == 0) & (source != CONTRAST)).sum()),
+            "corpus_motion": int(((label == 0) & ~(source == CONTRAST)).sum()),
             "trained_on": int((~gate).sum()),
             "chosen_motion": int(gate.sum()),
         },
