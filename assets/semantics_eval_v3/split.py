@@ -17,12 +17,12 @@ HERE = Path(__file__).resolve().parent
 BENCH_SHARE = 0.4
 
 
-def rows():
+def rows(here=HERE):
     out = []
-    for line in (HERE / "nomotion_raw.jsonl").read_text().splitlines():
+    for line in (here / "nomotion_raw.jsonl").read_text().splitlines():
         r = json.loads(line)
         out.append({"id": r["id"], "text": r["text"], "intent": "none", "intensity": None, "style": r["class"]})
-    for line in (HERE / "contrast_raw.jsonl").read_text().splitlines():
+    for line in (here / "contrast_raw.jsonl").read_text().splitlines():
         r = json.loads(line)
         out.append(
             {
@@ -37,12 +37,13 @@ def rows():
     return out
 
 
-def main():
-    items = rows()
+def main(here=HERE, seed=20261203):
+    """Split ``here``'s raw files (another folder's too: assets/semantics_eval_w3/split.py) with ``seed``."""
+    items = rows(here)
     strata = {}
     for r in items:
         strata.setdefault(r["style"] if r["intent"] == "none" else r["intent"], []).append(r["id"])
-    rng = random.Random(20261203)
+    rng = random.Random(seed)
     bench = set()
     for key in sorted(strata):
         ids = sorted(strata[key])
@@ -50,7 +51,7 @@ def main():
         bench.update(ids[: round(BENCH_SHARE * len(ids))])
     for name, keep in (("all", lambda r: True), ("bench", lambda r: r["id"] in bench), ("train", lambda r: r["id"] not in bench)):
         text = "".join(json.dumps(r, ensure_ascii=False) + "\n" for r in items if keep(r))
-        (HERE / f"{name}.jsonl").write_text(text)
+        (here / f"{name}.jsonl").write_text(text)
     print(f"{len(items)} texts: {len(bench)} bench (frozen), {len(items) - len(bench)} train")
 
 
