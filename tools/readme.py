@@ -62,7 +62,7 @@ DIFFERENCES = """### Where our numbers differ from the paper's, and why
 - **The one-sample metric.** On library v5 every paper-protocol bracket under the reference rows holds (library
   v4 missed one: with 24 split tuples the tuple mean sat 0.078 below the oracle, short of SPEC's 0.10; its results
   are kept in `results/library_v4/`). A regressor that outputs the tuple mean still passes Succ@τ on a few split
-  tuples (the three-variant ones, whose training mean lies near every variant). The distribution metrics (the second table) rank the known
+  tuples (mostly three-variant ones, whose 1 + 1 + 1 training mean lies near every variant). The distribution metrics (the second table) rank the known
   references right first — a fresh replay above the hedge and the collapse, another intent and the adjacent
   intensity at the bottom of retrieval. Library v3's results (where the brackets failed and the CNN rows led
   Succ.) are kept in `results/library_v3/`.
