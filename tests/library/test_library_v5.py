@@ -142,3 +142,15 @@ def test_earlier_libraries_are_still_reproducible_byte_for_byte(tmp_path, versio
     path = library.save(arrays, _, tmp_path / f"v{version}.npz")
     assert hashlib.sha256(path.read_bytes()).hexdigest() == card["sha256"]
     assert str(arrays["library_version"]) == card["library_version"] == designs.LIBRARY_VERSIONS[version]
+
+
+@pytest.mark.slow
+def test_the_v5_code_is_what_the_design_tool_produces():
+    """``python -m tools.design_library --version 5 --check``: word pools simulated afresh, v4's stored code as the
+    warm start, one annealing stage (~2.5 min on 2 cores)."""
+    from jgrounding.library import signatures_v5
+    from tools import design_library
+
+    code = design_library.design(5, progress=False)
+    np.testing.assert_allclose(np.array(signatures_v5.CODE), code, atol=0.005)
+    assert signatures_v5.NUM_VARIANTS == design_library.NUM_VARIANTS_V5
