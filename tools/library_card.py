@@ -220,9 +220,7 @@ def brackets_table(b: dict) -> str:
 
 
 def _why(design) -> dict:
-    if design.version == 3:
-        return primitives.VARIANTS
-    return designs.VARIANTS_V4 if design.version == 4 else designs.VARIANTS_V5
+    return designs.VARIANT_REASONS[design.version]
 
 
 def _design_text(design, card) -> str:

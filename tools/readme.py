@@ -90,7 +90,10 @@ def section() -> str:
         if title:
             parts += [title, ""]
         parts += [f"![{name}](results/{name})" if name.endswith(".png") else path.read_text().strip(), ""]
-    kept = [(v, sorted(p.name for p in (ROOT / "results" / f"library_v{v}").glob("*.md"))) for v in (4, 3, 2)]
+    versions = sorted(
+        (int(p.name.removeprefix("library_v")) for p in (ROOT / "results").glob("library_v*")), reverse=True
+    )
+    kept = [(v, sorted(p.name for p in (ROOT / "results" / f"library_v{v}").glob("*.md"))) for v in versions]
     kept = [(v, names) for v, names in kept if names]
     if kept:
         parts += ["### Earlier libraries", ""]

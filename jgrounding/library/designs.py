@@ -126,6 +126,9 @@ VARIANTS_V5 = {
     "beckoning": "the tip curls in from the left or from the right: both say 'come here'",
 }
 
+# Why each one-to-many intent has its variants, by library version (the card prints them).
+VARIANT_REASONS = {3: primitives.VARIANTS, 4: VARIANTS_V4, 5: VARIANTS_V5}
+
 _CACHE: dict[int, Design] = {}
 
 

@@ -166,13 +166,20 @@ def block(x, mask_bias, p):
     return layer_norm(x + _dense(h, p["ff2"]), p["ln2"])
 
 
-@jax.jit
-def encode_ids(params, ids, mask):
-    """Token ids ``(B, L)`` int32 and attention mask ``(B, L)`` -> unit sentence embeddings ``(B, 384)``."""
+def token_states(params, ids, mask):
+    """Final token states ``(B, L, 384)``: embeddings, then every stacked layer of ``params`` (any number of them)
+    with padded positions masked out of attention. Traced inside the compiled programs below."""
     x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
     x = layer_norm(x, params["ln"])
     mask_bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
     x, _ = jax.lax.scan(lambda h, p: (block(h, mask_bias, p), None), x, params["layers"])
+    return x
+
+
+@jax.jit
+def encode_ids(params, ids, mask):
+    """Token ids ``(B, L)`` int32 and attention mask ``(B, L)`` -> unit sentence embeddings ``(B, 384)``."""
+    x = token_states(params, ids, mask)
     m = mask[..., None].astype(jnp.float32)
     pooled = (x * m).sum(1) / jnp.maximum(m.sum(1), 1e-9)
     return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)
@@ -185,10 +192,7 @@ def pool_ids(params, ids, mask, pools):
     Returns unit vectors ``(B, P, 384)``: the mean of the token states each pool selects (a zero vector for an
     empty pool). A pool equal to ``mask`` gives :func:`encode_ids`'s sentence embedding.
     """
-    x = params["word"][ids] + params["pos"][: ids.shape[1]][None] + params["type"][0][None, None]
-    x = layer_norm(x, params["ln"])
-    mask_bias = (1.0 - mask[:, None, None, :].astype(jnp.float32)) * -1e9
-    x, _ = jax.lax.scan(lambda h, p: (block(h, mask_bias, p), None), x, params["layers"])
+    x = token_states(params, ids, mask)
     w = pools.astype(jnp.float32)
     pooled = jnp.einsum("bpl,bld->bpd", w, x) / jnp.maximum(w.sum(-1, keepdims=True), 1e-9)
     return pooled / jnp.maximum(jnp.linalg.norm(pooled, axis=-1, keepdims=True), 1e-12)

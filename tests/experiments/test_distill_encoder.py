@@ -18,7 +18,7 @@ def test_the_student_is_the_teachers_chosen_layers():
 def test_states_pool_to_the_encoders_sentence_vector():
     params = encoder.load_params()
     ids, mask = encoder.tokenize(["Give a small hello wave."])
-    x = np.asarray(de.states(params, ids, mask))
+    x = np.asarray(encoder.token_states(params, ids, mask))
     m = mask[..., None].astype(np.float32)
     pooled = (x * m).sum(1) / m.sum(1)
     pooled /= np.linalg.norm(pooled, axis=-1, keepdims=True)
