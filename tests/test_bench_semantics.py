@@ -53,3 +53,14 @@ def test_it_refuses_to_time_jg_ground_when_it_would_escalate_to_an_mllm(monkeypa
     monkeypatch.setenv("JGROUNDING_MLLM_URL", "http://127.0.0.1:9/v1")
     assert bench.main([]) == 1
     assert "JGROUNDING_MLLM_URL" in capsys.readouterr().out
+
+
+def test_the_goals_of_34_are_read_on_every_blind_bench_and_the_v2_styles():
+    res, _, _ = _results(situation=0.93)
+    blind = {"n_motion": 5, "intent": 0.96, "confident_wrong": 0.0, "none_held": 0.97, "exact": 0.85, "ece": 0.03}
+    res |= {("new", "b1", "all"): blind, ("new", "b2", "all"): dict(blind, none_held=0.9, confident_wrong=0.02)}
+    rows = bench.blind_goal_rows(res, ["b1", "b2"])
+    missed = [g for _, g, ok, _ in rows if not ok]
+    assert missed == ["b2: no-motion held >= 0.95", "b2: confident wrong motion <= 1% of contrast texts"]
+    assert sum(g.startswith("b1") for _, g, _, _ in rows) == 5 and rows[-2][3] == "0.930"
+    assert rows[-1][3] == "lowest terse 0.970"

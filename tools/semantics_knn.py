@@ -308,8 +308,9 @@ def _holdout_line(v: dict) -> str:
 
 
 def table_rows() -> tuple[list[dict], np.ndarray]:
-    """The rows the vote's table may hold: the training corpora (:func:`tools.train_semantics.load_train`) and then
-    the vote-only rows (:data:`VOTE_ROWS`), with each row's file name ``(N,)``."""
+    """The rows the vote's table may hold: the training corpora (``assets/semantics_train/``; not the blind writers'
+    splits, which hold no situations) and then the vote-only rows (:data:`VOTE_ROWS`), with each row's file name
+    ``(N,)``."""
     rows, files = [], []
     for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *sorted(VOTE_ROWS.glob("*.jsonl"))]:
         part = ts.read_jsonl(path)
@@ -364,7 +365,14 @@ def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: boo
     if dry:
         return 0
     if not ok:
-        raise SystemExit("the chosen variant does not pass the ship rule on dev: nothing written")
+        stale = ""
+        if sh.KNN_ASSET.exists():  # a table made for an earlier head: grounding ignores it; remove it
+            with np.load(sh.KNN_ASSET) as f:
+                made_for = json.loads(str(f["meta"])).get("head_digest")
+            if made_for != head.meta["params_digest"]:
+                sh.KNN_ASSET.unlink()
+                stale = f"; removed {sh.KNN_ASSET.name}, made for another head ({made_for})"
+        raise SystemExit(f"the chosen variant does not pass the ship rule on dev: no vote ships{stale}")
     meta = dict(
         k=CHOSEN["k"],
         tau=CHOSEN["tau"],

@@ -37,11 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding.semantics import nomotion, structure
+from tools.train_semantics import BLIND_TRAIN  # the blind writers' training splits: the head's and the detector's
 
 ROOT = Path(__file__).resolve().parent.parent
-V3_TRAIN = ROOT / "assets" / "semantics_eval_v3" / "train.jsonl"
-W3_TRAIN = ROOT / "assets" / "semantics_eval_w3" / "train.jsonl"
-BLIND_TRAIN = (V3_TRAIN, W3_TRAIN)  # the blind writers' training splits
 TRAIN_DIR = ROOT / "assets" / "semantics_train"
 HIDDEN = 64
 WEIGHT_DECAY = 0.1

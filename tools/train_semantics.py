@@ -4,7 +4,9 @@
     python -m tools.train_semantics       # train on assets/semantics_train/*.jsonl, select/calibrate on dev
 
 Training data: every ``assets/semantics_train/*.jsonl`` (the independently written corpora and our generated
-one; all disjoint from the evaluation sets). Rows with intent ``"none"`` teach the no-behaviour class; their
+one; all disjoint from the evaluation sets) and the blind writers' training splits of #34 (:data:`BLIND_TRAIN`:
+contrast texts and texts that call for no motion, in nine kinds; their frozen ``bench.jsonl`` is read only by
+``python -m experiments.bench semantics``; ``--no-blind`` leaves them out). Rows with intent ``"none"`` teach the no-behaviour class; their
 ``style`` (addressee, quoted, system, ...) teaches the reason head that says why a text calls for no motion.
 
 Options (:data:`OPTIONS`) are compared on the dev splits: ``assets/semantics_eval_v2/dev.jsonl`` (the styles
@@ -13,9 +15,12 @@ option's softmax temperature is fitted on v2 dev (NLL over the 17 classes), so a
 the motion texts' intensities, :func:`fit_cut_points`), then its confidence threshold:
 the lowest at which the confident wrong motions on v2 dev (acted on with the wrong intent, or acted on a
 no-behaviour text) stay within ``TARGET_WRONG``. The option with the best dev score (:func:`dev_score`) is
-shipped. The test splits are never read here. Deterministic: fixed keys and seeded minibatch order. Frozen encoder
-features are cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span code), so re-runs skip
-the encoder; the "tuned" option (top encoder layers trained with the head) takes about 8 minutes on 2 cores.
+shipped (:func:`ship_choice`: of the options within :data:`SHIP_MARGIN` of the best, the fewest encoder layers). The
+test splits are never read here. Deterministic: fixed keys and seeded minibatch order. Frozen encoder features are
+cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span code), so re-runs skip the encoder; the
+"tuned" option (top encoder layers trained with the head) takes about 10 minutes on 2 cores, the "student" (its
+encoder distilled into three layers, then trained with a new head) about 20 more; both are cached too
+(:func:`cached_finetune`), so a whole run takes about 31 minutes the first time.
 A new head makes the nearest-neighbour table (``jgrounding/assets/semantic_knn.npz``) stale: it is ignored until
 ``python -m tools.semantics_knn --write`` rebuilds it for the new head; so is the learned no-motion detector
 (``jgrounding/assets/nomotion_detector.npz``, which reads the head's sentence vectors) until
@@ -27,6 +32,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import hashlib
+import inspect
 import io
 import json
 from pathlib import Path
@@ -52,6 +58,10 @@ TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test 
 # (situations_blind.jsonl: the vote-only rows of assets/semantics_vote/, for a head retrained with them through
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
+# The blind writers' training splits (#34): two writers' (v3) and a third's (w3) contrast and no-motion texts, each
+# file weighing as the structure corpus. Their bench.jsonl stays frozen. tools.train_nomotion reads the same files.
+BLIND_TRAIN = tuple(ROOT / "assets" / d / "train.jsonl" for d in ("semantics_eval_v3", "semantics_eval_w3"))
+BLIND_WEIGHT = 2.0
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),
     "structure": dict(inputs="structure", hidden=128, steps=400),
@@ -60,7 +70,18 @@ OPTIONS = {
     # stay frozen, so their token states are computed once). Inputs as "structure", without the Eq. (3)
     # similarities (they live in the frozen encoder's space).
     "tuned": dict(inputs="tuned", hidden=128, tuned_layers=3, epochs=8),
+    # A faster encoder (#34 item 4): the "tuned" option's six layers (the teacher, trained in the same run; a re-run
+    # reads both from the cache, cached_finetune) distilled into three of them (MiniLM layers 1, 3, 5: every other one, ending with the
+    # tuned top layer) on the training texts' final token states (DISTILL_STEPS), then all three trained with a new
+    # head as "tuned" trains its top three. Shipped when its dev score is within SHIP_MARGIN of the best.
+    "student": dict(inputs="tuned", hidden=128, tuned_layers=3, epochs=8, encoder_layers=(1, 3, 5)),
 }
+DISTILL_STEPS = 1500  # AdamW steps of DISTILL_BATCH texts (cosine schedule, warm-up 5 %); about 10 min on 2 cores
+DISTILL_BATCH = 32
+DISTILL_LR = 2e-4
+# The ship rule: of the options whose dev score is within SHIP_MARGIN of the best, the one whose encoder runs the
+# fewest layers (speed is a goal of #34); ties by score, then by the options' order.
+SHIP_MARGIN = 0.01
 # How a no-behaviour style reads to a person (the reason head's classes; unknown styles read as their name).
 REASON_TEXT = {
     "addressed_other": "words addressed to someone else",
@@ -72,6 +93,15 @@ REASON_TEXT = {
     "chitchat": "chit-chat: no behaviour requested",
     "question": "a question that moving cannot answer",
     "none": "no behaviour requested",
+    # the blind writers' kinds (#34)
+    "rules_out": "the text rules the motion out",
+    "freeze_order": "an order to keep still",
+    "observed_activity": "activity that asks nothing of the robot",
+    "media_or_readaloud": "media or words read aloud",
+    "system_or_meta": "a system or log line",
+    "not_now_wait": "nothing to respond to yet",
+    "maintenance_handling": "the trunk is being handled or serviced",
+    "past_or_hypothetical": "a past or hypothetical motion, not a request",
 }
 
 
@@ -102,13 +132,25 @@ def reason_labels(rows, classes) -> np.ndarray:
     return np.array([classes.index(r.get("style") or "none") if r["intent"] == "none" else -1 for r in rows], np.int32)
 
 
-def load_train(train_dir=TRAIN_DIR) -> tuple[list[dict], np.ndarray]:
-    """All training rows and each one's weight before class balancing ``(N,)`` (:data:`FILE_WEIGHTS`)."""
+def train_files(train_dir=TRAIN_DIR, blind=BLIND_TRAIN) -> dict[str, tuple[Path, float]]:
+    """The training files by name (a corpus file by its name, a blind split by its folder and name) with their
+    weights (:data:`FILE_WEIGHTS`, :data:`BLIND_WEIGHT`), in reading order."""
+    files = {path.name: (path, FILE_WEIGHTS.get(path.name, 1.0)) for path in sorted(Path(train_dir).glob("*.jsonl"))}
+    for path in blind:
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(f"blind training split {path} missing (run its folder's split.py)")
+        files[f"{path.parent.name}/{path.name}"] = (path, BLIND_WEIGHT)
+    return files
+
+
+def load_train(train_dir=TRAIN_DIR, blind=BLIND_TRAIN) -> tuple[list[dict], np.ndarray]:
+    """All training rows and each one's weight before class balancing ``(N,)`` (:func:`train_files`)."""
     rows, weight = [], []
-    for path in sorted(Path(train_dir).glob("*.jsonl")):
+    for path, w in train_files(train_dir, blind).values():
         part = read_jsonl(path)
         rows += part
-        weight += [FILE_WEIGHTS.get(path.name, 1.0)] * len(part)
+        weight += [w] * len(part)
     return rows, np.array(weight, np.float32)
 
 
@@ -236,24 +278,101 @@ def fit(x, rows, row_weight, inputs, hidden, steps=400, z_hidden=0, dropout=0.1,
     return (members[0] if len(members) == 1 else sh.stack(members)), cfg
 
 
-def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, enc_lr=2e-5, head_lr=3e-3, seed=0):
-    """Train the encoder's top ``tuned_layers`` layers and the head together (the "tuned" option).
+def distill(
+    teacher: dict, encoder_layers: tuple[int, ...], texts: list[str], steps: int = DISTILL_STEPS, progress: bool = True
+) -> tuple[dict, list]:
+    """A student encoder of the teacher's layers ``encoder_layers`` (embeddings shared and frozen), trained to
+    reproduce the teacher's final token states (mean squared error over real tokens) on ``texts``: AdamW with a
+    cosine schedule over ``steps`` batches of :data:`DISTILL_BATCH` texts of similar length, from a fixed seed.
+    Returns (the student's encoder params, float32; the loss every 100 steps ``[(step, loss)]``)."""
+    import time
 
-    The lower layers are frozen: their token states are computed once, then minibatches of 64 texts of similar
-    length (shuffled, seeded) run the top layers, pool the four spans, and train on the head's loss. Returns
-    (head params, float16 deltas of the top layers :func:`head.top_deltas`, config)."""
+    import jax.numpy as jnp
+    import optax
+
+    from jgrounding.semantics import encoder
+
+    teacher = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), teacher)
+    pick = np.array(encoder_layers)
+    frozen = {k: v for k, v in teacher.items() if k != "layers"}
+    trained = jax.tree.map(lambda x: x[pick], teacher["layers"])
+    opt = optax.adamw(optax.warmup_cosine_decay_schedule(0.0, DISTILL_LR, steps // 20, steps), weight_decay=0.01)
+    state = opt.init(trained)
+
+    @jax.jit
+    def step(trained, state, ids, mask):
+        target = jax.lax.stop_gradient(encoder.token_states(teacher, ids, mask))
+        m = mask[..., None].astype(jnp.float32)
+
+        def loss(layers_):
+            out = encoder.token_states(dict(frozen, layers=layers_), ids, mask)
+            return (((out - target) ** 2) * m).sum() / (m.sum() * out.shape[-1])
+
+        value, grad = jax.value_and_grad(loss)(trained)
+        updates, state = opt.update(grad, state, trained)
+        return optax.apply_updates(trained, updates), state, value
+
+    enc = encoder.tokenizer().encode_batch(texts)
+    order = np.argsort([len(e.ids) for e in enc], kind="stable")
+    batches = [order[i : i + DISTILL_BATCH] for i in range(0, len(order) - DISTILL_BATCH + 1, DISTILL_BATCH)]
+    rng = np.random.default_rng(0)
+    losses, t0 = [], time.perf_counter()
+    for s in range(steps):
+        chunk = [enc[i] for i in batches[rng.integers(len(batches))]]
+        ids, mask = encoder.pad_rows(chunk, encoder.bucket_length(max(len(e.ids) for e in chunk)), len(chunk))
+        trained, state, value = step(trained, state, ids, mask)
+        if s % 100 == 0 or s == steps - 1:
+            losses.append((s, float(value)))
+            if progress:
+                print(
+                    f"    distil: step {s + 1}/{steps} token-state MSE {float(value):.5f} "
+                    f"({time.perf_counter() - t0:.0f} s)",
+                    flush=True,
+                )
+    return dict(frozen, layers=jax.tree.map(np.asarray, trained)), losses
+
+
+def finetune(
+    rows,
+    row_weight,
+    reasons,
+    hidden=128,
+    tuned_layers=3,
+    epochs=8,
+    enc_lr=2e-5,
+    head_lr=3e-3,
+    seed=0,
+    encoder_layers=(),
+    start=None,
+):
+    """Train the encoder's top ``tuned_layers`` layers and the head together (the "tuned" and "student" options).
+
+    The encoder is the frozen MiniLM (``encoder_layers``: the layers it keeps, all by default), or ``start``: a
+    distilled student's params (:func:`distill`) whose layers are ``encoder_layers``. The lower layers are frozen:
+    their token states are computed once, then minibatches of 64 texts of similar length (shuffled, seeded) run the
+    top layers, pool the four spans, and train on the head's loss. Returns (head params, float16 deltas of the top
+    layers :func:`head.top_deltas`, config)."""
     import jax.numpy as jnp
     import optax
 
     from jgrounding.semantics import encoder, structure
 
     cfg = sh.HeadConfig(
-        hidden=hidden, inputs="tuned", tuned_layers=tuned_layers, num_reasons=len(reasons), seed=seed, steps=0
+        hidden=hidden,
+        inputs="tuned",
+        tuned_layers=tuned_layers,
+        num_reasons=len(reasons),
+        seed=seed,
+        steps=0,
+        encoder_layers=encoder_layers,
     )
     texts = [r["text"] for r in rows]
     structs = [structure.analyse(t) for t in texts]
     extras = np.stack([features.tuned_extras(t, st) for t, st in zip(texts, structs)])
-    base = encoder.load_params()
+    if start is not None:
+        base = jax.device_put(start)
+    else:
+        base = dict(encoder.load_params(), layers=jax.device_put(sh.base_layers(cfg)))
     low = dict(base, layers=jax.tree.map(lambda a: a[:-tuned_layers], base["layers"]))
     top = jax.tree.map(lambda a: a[-tuned_layers:], base["layers"])
 
@@ -335,6 +454,78 @@ def finetune(rows, row_weight, reasons, hidden=128, tuned_layers=3, epochs=8, en
     return jax.tree.map(np.asarray, params["head"]), sh.top_deltas(params["top"], cfg), cfg
 
 
+def ship_choice(scored: dict) -> str:
+    """The option shipped, of ``{name: (dev score, HeadConfig)}`` in the options' order: among those within
+    :data:`SHIP_MARGIN` of the best score, the one whose encoder runs the fewest layers; then the higher score,
+    then the first."""
+    top = max(score for score, _ in scored.values())
+    near = [k for k, (score, _) in scored.items() if score >= top - SHIP_MARGIN - 1e-12]
+    return min(near, key=lambda k: (scored[k][1].num_encoder_layers, -scored[k][0], list(scored).index(k)))
+
+
+def encoder_params_numpy() -> dict:
+    from jgrounding.semantics import encoder
+
+    return encoder.load_numpy()
+
+
+def cached_finetune(name, rows, row_weight, reasons, teacher=None):
+    """:func:`finetune` of option ``name`` (a "student" first distilled from ``teacher``, :func:`distill`), through
+    a cache in ``.cache/semantics/`` keyed by the training rows, their weights, the option, the distillation
+    settings, the teacher and the code that trains and reads them (:func:`finetune`, :func:`distill` and the
+    encoder's modules), so a re-run (or a run that adds an option)
+    skips the minutes of training. Returns (head params, top-layer deltas, config)."""
+    from jgrounding.io import write_atomic
+
+    opt = {k: v for k, v in OPTIONS[name].items() if k != "inputs"}
+    h = hashlib.sha256(
+        json.dumps(
+            [
+                name,
+                opt,
+                [r["text"] for r in rows],
+                [r["intent"] for r in rows],
+                [r.get("intensity") for r in rows],
+                [r.get("style") for r in rows],
+                np.asarray(row_weight).tolist(),
+                reasons,
+                [DISTILL_STEPS, DISTILL_BATCH, DISTILL_LR],
+            ]
+        ).encode()
+    )
+    for code in ("structure.py", "encoder.py", "head.py", "features.py"):
+        h.update((ROOT / "jgrounding" / "semantics" / code).read_bytes())
+    h.update((inspect.getsource(finetune) + inspect.getsource(distill)).encode())
+    if teacher is not None:
+        for leaf in jax.tree.leaves(teacher):
+            h.update(np.asarray(leaf, np.float32).tobytes())
+    path = CACHE / f"finetune-{name}-{h.hexdigest()[:16]}.npz"
+    if path.exists():
+        print(f"  {name}: trained before, read from {path.relative_to(ROOT)}", flush=True)
+        with np.load(path) as f:
+            params = {k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("param/")}
+            deltas = sh.unflatten({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
+            cfg = sh.HeadConfig.from_dict(json.loads(str(f["config"])))
+        return params, deltas, cfg
+    start = None
+    if teacher is not None:
+        texts = sorted({r["text"] for r in rows})
+        print(
+            f"  {name}: distilling the tuned encoder into its layers {opt['encoder_layers']} on {len(texts)} "
+            f"training texts ({DISTILL_STEPS} steps)",
+            flush=True,
+        )
+        start, _ = distill(teacher, opt["encoder_layers"], texts)
+    params, deltas, cfg = finetune(rows, row_weight, reasons, **opt, start=start)
+    buf = io.BytesIO()
+    arrays = {f"param/{k}": np.asarray(v) for k, v in params.items()}
+    arrays |= {f"top/{k}": np.asarray(v) for k, v in sh.flatten(deltas).items()}
+    np.savez(buf, **arrays, config=json.dumps(dataclasses.asdict(cfg)))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, buf.getvalue())
+    return params, deltas, cfg
+
+
 def _class_balanced(rows, row_weight, reasons) -> np.ndarray:
     """Row weights: each intent (and "none") weighs the same in total; within it rows weigh as their file does,
     and within "none" each kind of no-behaviour text (its reason) weighs the same. Mean 1."""
@@ -359,6 +550,7 @@ def main(argv=None) -> int:
     p.add_argument("--dev-plain", default=str(DEV_PLAIN))
     p.add_argument("--out", default=str(sh.ASSET))
     p.add_argument("--train-dir", default=str(TRAIN_DIR), help="folder of the training *.jsonl files")
+    p.add_argument("--no-blind", action="store_true", help="leave out the blind writers' training splits (BLIND_TRAIN)")
     p.add_argument("--options", default=",".join(OPTIONS), help=f"options to compare ({', '.join(OPTIONS)})")
     p.add_argument("--report", default=str(ROOT / "results" / "semantics_dev_options.json"))
     args = p.parse_args(argv)
@@ -366,14 +558,16 @@ def main(argv=None) -> int:
     bad = [o for o in chosen if o not in OPTIONS]
     if bad:
         raise SystemExit(f"unknown option(s) {bad}; valid options: {', '.join(OPTIONS)}")
-    rows, row_weight = load_train(args.train_dir)
+    blind = () if args.no_blind else BLIND_TRAIN
+    rows, row_weight = load_train(args.train_dir, blind)
     dev = read_jsonl(args.dev) if Path(args.dev).exists() else []
     plain = read_jsonl(args.dev_plain)
     if not dev:
         print(f"{args.dev} missing: selecting and calibrating on {args.dev_plain} alone")
         dev = plain
     reasons = reason_classes(rows)
-    print(f"train: {len(rows)} rows; dev: {len(dev)} + plain {len(plain)} rows; file weights {FILE_WEIGHTS}")
+    weights = {name: w for name, (_, w) in train_files(args.train_dir, blind).items()}
+    print(f"train: {len(rows)} rows; dev: {len(dev)} + plain {len(plain)} rows; file weights {weights}")
     print(f"no-behaviour reasons: {reasons}")
     texts = [r["text"] for r in rows]
     if any(OPTIONS[o]["inputs"] != "tuned" for o in chosen):  # the frozen encoder's features (cached)
@@ -386,9 +580,17 @@ def main(argv=None) -> int:
         opt = OPTIONS[name]
         deltas = None
         if opt["inputs"] == "tuned":
-            params, deltas, cfg = finetune(rows, row_weight, reasons, **{k: v for k, v in opt.items() if k != "inputs"})
+            if name == "student" and "tuned" not in results:
+                raise SystemExit("the student option distils the tuned option's encoder: --options tuned,student")
+            teacher = results["tuned"]["_encoder"] if name == "student" else None
+            params, deltas, cfg = cached_finetune(name, rows, row_weight, reasons, teacher)
             # Dev features through the shipped path: the float16 deltas on the frozen encoder, as ground() reads them.
             tuned = sh.Head(params, cfg, 1.0, 0.5, {}, sh.with_top(deltas, cfg))
+            encoder_f32 = jax.tree.map(  # the teacher of a later student: float32 weights
+                lambda b, d: np.concatenate([b[: -cfg.tuned_layers], b[-cfg.tuned_layers :] + np.float32(d)]),
+                sh.base_layers(cfg),
+                deltas,
+            )
             xd = features.head_inputs(tuned, [r["text"] for r in dev])
             xp = features.head_inputs(tuned, [r["text"] for r in plain])
         else:
@@ -416,6 +618,7 @@ def main(argv=None) -> int:
             _cfg=cfg,
             _deltas=deltas,
             _xd=xd,
+            _encoder=None if deltas is None else dict(encoder_params_numpy(), layers=encoder_f32),
         )
         print(
             f"  {name:15s} score {score:.3f} | v2 dev: intent {r['intent_motion']:.3f} exact {r['intensity_exact']:.3f}"
@@ -425,11 +628,11 @@ def main(argv=None) -> int:
             f" | plain dev intent {rp['intent_motion']:.3f}",
             flush=True,
         )
-    best = max(results, key=lambda k: results[k]["score"])  # first of equals: the options' order breaks ties
+    best = ship_choice({k: (v["score"], v["_cfg"]) for k, v in results.items()})
     b = results[best]
     digests = {
-        path.name: hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-        for path in sorted(Path(args.train_dir).glob("*.jsonl"))
+        name: hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        for name, (path, _) in train_files(args.train_dir, blind).items()
     }
     comparison = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in results.items()}
     meta = {
@@ -441,7 +644,7 @@ def main(argv=None) -> int:
         "reasons": reasons,
         "reason_text": {k: REASON_TEXT.get(k, k.replace("-", " ")) for k in reasons},
         "train_files": digests,
-        "file_weights": FILE_WEIGHTS,
+        "file_weights": weights,
         "dev_file": hashlib.sha256(Path(args.dev).read_bytes()).hexdigest()[:16] if Path(args.dev).exists() else "",
         "dev": b["dev"],
         "dev_plain": b["dev_plain"],

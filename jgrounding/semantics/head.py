@@ -49,9 +49,31 @@ class HeadConfig:
     num_reasons: int = 0  # classes of the "why no behaviour" head (0: none)
     reason_weight: float = 0.3  # its loss weight
     tuned_layers: int = 0  # "tuned": how many top encoder layers were trained with the head (shipped as deltas)
+    # The MiniLM layers the encoder keeps, by index (empty: all six). A distilled student (#34 item 4) keeps fewer:
+    # its layers start from these, learn the six-layer teacher's token states, then train with the head; all of
+    # them are then tuned and shipped as deltas from these base layers.
+    encoder_layers: tuple[int, ...] = ()
 
     def __post_init__(self):
         inputs_named(self.inputs)  # a clear error naming the valid pipelines
+        from jgrounding.semantics.encoder import NUM_LAYERS
+
+        object.__setattr__(self, "encoder_layers", tuple(int(i) for i in self.encoder_layers))
+        if any(not 0 <= i < NUM_LAYERS for i in self.encoder_layers) or list(self.encoder_layers) != sorted(
+            set(self.encoder_layers)
+        ):
+            raise ValueError(
+                f"encoder_layers {self.encoder_layers}: increasing MiniLM layer indices in 0..{NUM_LAYERS - 1}"
+            )
+        if self.tuned_layers > self.num_encoder_layers:
+            raise ValueError(f"tuned_layers {self.tuned_layers} > the encoder's {self.num_encoder_layers} layers")
+
+    @property
+    def num_encoder_layers(self) -> int:
+        """How many transformer layers the encoder this head reads runs."""
+        from jgrounding.semantics.encoder import NUM_LAYERS
+
+        return len(self.encoder_layers) or NUM_LAYERS
 
     @property
     def features(self) -> Inputs:
@@ -315,18 +337,29 @@ def unflatten(flat: dict) -> dict:
     return out
 
 
-def top_deltas(top: dict, cfg: HeadConfig) -> dict:
-    """Tuned top encoder layers (stacked like :func:`encoder.load_params`' layers) as float16 differences from
-    the frozen MiniLM's, which is how they are shipped (small, and exact to ~1e-6 of the weights)."""
+def base_layers(cfg: HeadConfig, layers: dict | None = None) -> dict:
+    """The frozen MiniLM's stacked layers (numpy, float32; ``layers``: all six, already read) that the encoder of
+    ``cfg`` starts from: all six, or those ``cfg.encoder_layers`` keeps."""
     from jgrounding.semantics import encoder
 
-    base = jax.tree.map(lambda x: x[-cfg.tuned_layers :], encoder.load_numpy()["layers"])
+    layers = encoder.load_numpy()["layers"] if layers is None else layers
+    if cfg.encoder_layers:
+        layers = jax.tree.map(lambda x: np.ascontiguousarray(x[list(cfg.encoder_layers)]), layers)
+    return layers
+
+
+def top_deltas(top: dict, cfg: HeadConfig) -> dict:
+    """Tuned top encoder layers (stacked like :func:`encoder.load_params`' layers) as float16 differences from
+    the frozen MiniLM's (:func:`base_layers`), which is how they are shipped (small, and exact to ~1e-6 of the
+    weights)."""
+    base = jax.tree.map(lambda x: x[-cfg.tuned_layers :], base_layers(cfg))
     return jax.tree.map(lambda t, b: (np.asarray(t, np.float32) - b).astype(np.float16), top, base)
 
 
 def with_top(deltas: dict, cfg: HeadConfig) -> dict:
-    """The encoder's weights with its top ``cfg.tuned_layers`` layers replaced by base + ``deltas``, as grounding
-    reads them: the dense matrices stored in float16 (:func:`jgrounding.semantics.encoder.half_matrices`).
+    """The encoder's weights (the layers ``cfg.encoder_layers`` keeps) with its top ``cfg.tuned_layers`` layers
+    replaced by base + ``deltas``, as grounding reads them: the dense matrices stored in float16
+    (:func:`jgrounding.semantics.encoder.half_matrices`).
 
     Merged in numpy from the weights file and put on the device in one transfer (no small compiled ops and no
     second copy of the frozen encoder on a fresh process's first call)."""
@@ -334,6 +367,7 @@ def with_top(deltas: dict, cfg: HeadConfig) -> dict:
 
     encoder.enable_compilation_cache()
     params = dict(encoder.load_numpy())
+    params["layers"] = base_layers(cfg, params["layers"])
     k = cfg.tuned_layers
     params["layers"] = jax.tree.map(
         lambda b, d: np.concatenate([b[:-k], b[-k:] + np.asarray(d, np.float32)]), params["layers"], deltas

@@ -94,3 +94,17 @@ def test_the_peer_sample_is_spread_over_both_splits_and_fixed():
     sample = bench.peer_sample(splits, 5)
     assert sample == ["a0", "a5", "b0", "b4", "b9"] and bench.peer_sample(splits, 5) == sample
     assert bench.peer_sample(splits, 50) == [*(f"a{i}" for i in range(10)), *(f"b{i}" for i in range(10))]
+
+
+def test_the_speed_goal_is_judged_on_avx2_or_on_the_ratio_to_the_same_weights(monkeypatch):
+    rows = {"jg_ground": {"ms_median": 4.0}, "torch_eager": {"ms_median": 9.0}}
+    monkeypatch.setattr(bench, "cpu_isa", lambda: "avx512f")
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    line = bench.speed_goal_line(rows)
+    assert "5 ms goal not met" in line and "2.25x (goal 2x: met)" in line and "Goal met" in line
+    rows["torch_eager"]["ms_median"] = 6.0
+    assert "Goal not met" in bench.speed_goal_line(rows)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_max_isa=AVX2")
+    assert "5 ms goal met" in bench.speed_goal_line(rows)
+    rows["torch_eager_minilm6"] = {"ms_median": 12.0}
+    assert "six-layer MiniLM a user would run instead 3.00x" in bench.speed_goal_line(rows)

@@ -81,9 +81,9 @@ def test_low_confidence_escalates_to_a_configured_mllm():
     from test_mllm import FakeServer  # same folder (pytest puts it on the path)
 
     with FakeServer(['{"intent": "resting", "intensity": "subtle"}']) as s:
-        low = jg.ground("jkl;", url=s.url)
+        low = jg.ground("Maybe move a bit?", url=s.url)  # unsure, and not a text that calls for no motion
         high = jg.ground("Wave hello to the user!", url=s.url)
-        kept = jg.ground("jkl;", url=s.url, escalate=False)
+        kept = jg.ground("Maybe move a bit?", url=s.url, escalate=False)
     assert low.backend == "mllm (escalated)" and "escalated" in low.reason and low.intent == "resting"
     assert high.backend == "embedded" and high.confident and kept.backend == "embedded"
     assert len(s.requests) == 1  # only the low-confidence text was asked

@@ -11,9 +11,8 @@ from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS
 from tools import semantics_knn, train_semantics
 
-# A v2 dev situation the head alone gets wrong (celebrating: the corpora pass exams far more often than they fail
-# them) and the vote gets right.
-FAILED_TEST = "The student just found out she failed her driving test."
+SITUATIONS = "assets/semantics_train/situations.jsonl"  # the rows of conftest's head_with_vote table
+
 NAMES_AN_ACTION = [
     "Nod.",
     "The user looks sad; comfort them gently.",
@@ -21,7 +20,12 @@ NAMES_AN_ACTION = [
 ]
 
 
-def test_table_matches_its_digest_and_the_shipped_head(head):
+def test_a_shipped_table_is_the_shipped_heads_and_passed_its_rule(head):
+    # tools.semantics_knn --write ships a table only when the vote passes its rule on dev for the shipped head,
+    # and removes one made for an earlier head; the head it was made for is the only one that reads it.
+    if not sh.KNN_ASSET.exists():
+        assert head.knn is None and sh.load_knn(head.meta["params_digest"]) is None
+        return
     with np.load(sh.KNN_ASSET) as f:
         meta = json.loads(str(f["meta"]))
         table, labels = f["table"], f["labels"]
@@ -33,19 +37,15 @@ def test_table_matches_its_digest_and_the_shipped_head(head):
     assert meta["dev_score"] > meta["head_alone"]["score"]  # it shipped under the ship rule
 
 
-def test_table_holds_the_vote_only_rows_that_the_head_never_trained_on(head):
-    # The shipped table: every training row but the generated corpus, then the vote-only situations
-    # (assets/semantics_vote/), in tools.semantics_knn.table_rows' order. The head's trainer must not read them.
+def test_the_table_rows_hold_the_vote_only_rows_that_the_head_never_trained_on():
+    # The table's rows: the training corpora, then the vote-only situations (assets/semantics_vote/), in
+    # tools.semantics_knn.table_rows' order. The head's trainer must not read the vote-only rows.
     rows, files = semantics_knn.table_rows()
-    intent, _ = train_semantics.labels(rows)
-    keep = files != "generated.jsonl"
-    with np.load(sh.KNN_ASSET) as f:
-        labels = f["labels"]
-    np.testing.assert_array_equal(labels, intent[keep])
     vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS.glob("*.jsonl")])
-    assert vote_only.sum() == 1024 and vote_only[keep].sum() == 1024
+    assert vote_only.sum() == 1024 and (files != "generated.jsonl")[vote_only].all()
+    corpora, _ = train_semantics.load_train(blind=())
+    assert len(corpora) == len(rows) - vote_only.sum()
     trained, _ = train_semantics.load_train()
-    assert len(trained) == len(rows) - vote_only.sum()
     assert not {r["text"] for r in trained} & {r["text"] for r, v in zip(rows, vote_only) if v}
 
 
@@ -66,19 +66,29 @@ def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_
         sh.load_knn("x", path)
 
 
-def test_the_vote_turns_a_dev_situation_the_right_way(head):
-    alone = dataclasses.replace(head, knn=None)
-    p_alone = embedded.predict_tuned_many(alone, [FAILED_TEST])[0][0]
-    p_vote = embedded.predict_tuned_many(head, [FAILED_TEST])[0][0]
-    assert INTENTS[int(np.argmax(p_alone[: len(INTENTS)]))] == "celebrating"
-    assert INTENTS[int(np.argmax(p_vote[: len(INTENTS)]))] == "comforting"
-    assert p_vote.sum() == pytest.approx(1.0, abs=1e-5)
+def test_the_vote_moves_a_situation_toward_its_neighbours_intent(head_with_vote):
+    # Situations of the table that the vote's gate lets through (they name no motion) are their own nearest
+    # neighbours: the blend moves the one the head is least sure of toward the intent it is labelled.
+    rows = [json.loads(line) for line in open(SITUATIONS).read().splitlines()[:64]]
+    texts = [r["text"] for r in rows]
+    voted = semantics_knn.no_motion_words(features.head_inputs(head_with_vote, texts))
+    assert voted.sum() >= 8
+    alone = dataclasses.replace(head_with_vote, knn=None)
+    p_alone = embedded.predict_tuned_many(alone, texts)[0]
+    p_vote = embedded.predict_tuned_many(head_with_vote, texts)[0]
+    label = np.array([INTENTS.index(r["intent"]) if r["intent"] != "none" else sh.NONE for r in rows])
+    mine = np.arange(len(rows))
+    k = int(mine[voted][np.argmin(p_alone[voted, label[voted]])])
+    assert p_vote[k, label[k]] > p_alone[k, label[k]] + 0.02
+    np.testing.assert_allclose(p_vote[~voted], p_alone[~voted], atol=1e-6)  # the gate: no vote
+    np.testing.assert_allclose(p_vote.sum(1), 1.0, atol=1e-5)
 
 
-def test_texts_that_name_an_action_keep_the_head_alone(head):
-    alone = dataclasses.replace(head, knn=None)
+def test_texts_that_name_an_action_keep_the_head_alone(head_with_vote):
+    alone = dataclasses.replace(head_with_vote, knn=None)
     for a, b in zip(
-        embedded.predict_tuned_many(head, NAMES_AN_ACTION), embedded.predict_tuned_many(alone, NAMES_AN_ACTION)
+        embedded.predict_tuned_many(head_with_vote, NAMES_AN_ACTION),
+        embedded.predict_tuned_many(alone, NAMES_AN_ACTION),
     ):
         np.testing.assert_allclose(a, b, atol=1e-6)
 

@@ -35,7 +35,10 @@ def test_bucketed_padding_gives_the_full_length_result(head):
         np.testing.assert_allclose(short, long, atol=1e-5)
 
 
-def test_one_program_equals_the_encoder_then_the_head(head):
+@pytest.mark.parametrize("which", ["head", "head_with_vote"])
+def test_one_program_equals_the_encoder_then_the_head(which, request):
+    head = request.getfixturevalue(which)  # the shipped head, and with a vote table made for it
+    assert (head.knn is not None) or which == "head"
     x = features.head_inputs(head, TEXTS)  # the two-step path the head was trained and calibrated with
     two_step = [np.asarray(a) for a in semantic_head.predict_all(head.params, x, head.temperature)]
     if head.knn is not None:  # then the nearest-neighbour vote, as tools.semantics_knn compared it on dev

@@ -182,3 +182,44 @@ def test_tuned_layers_ship_as_float16_deltas_on_the_frozen_encoder():
     np.testing.assert_array_equal(w[:-2], np.asarray(base["layers"]["q"]["w"][:-2]).astype(np.float16))
     flat = sh.flatten(deltas)
     assert "q/w" in flat and sh.unflatten(flat).keys() == deltas.keys()
+
+
+def test_a_student_keeps_its_chosen_layers_all_shipped_as_deltas():
+    cfg = sh.HeadConfig.from_dict(dict(inputs="tuned", tuned_layers=3, encoder_layers=[1, 3, 5]))
+    assert cfg.encoder_layers == (1, 3, 5) and cfg.num_encoder_layers == 3
+    base = encoder.load_numpy()["layers"]
+    trained = jax.tree.map(lambda a: a[[1, 3, 5]] + 0.01, base)
+    merged = sh.with_top(sh.top_deltas(trained, cfg), cfg)
+    assert np.asarray(merged["layers"]["q"]["b"]).shape == (3, encoder.HIDDEN)
+    np.testing.assert_allclose(np.asarray(merged["layers"]["q"]["b"]), trained["q"]["b"], atol=1e-5)
+    ids, mask = encoder.tokenize(["Give a small hello wave."])
+    assert np.asarray(encoder.token_states(merged, ids, mask)).shape == (1, ids.shape[1], encoder.HIDDEN)
+    assert encoder.matmul_flops(16, layers=3) * 2 == encoder.matmul_flops(16)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(encoder_layers=(3, 1)), "increasing"),
+        (dict(encoder_layers=(6,)), "0..5"),
+        (dict(encoder_layers=(5,), tuned_layers=2), "tuned_layers"),
+    ],
+)
+def test_a_bad_layer_choice_is_refused_with_the_valid_range(kw, match):
+    with pytest.raises(ValueError, match=match):
+        sh.HeadConfig(inputs="tuned", **kw)
+
+
+def test_ship_rule_takes_the_fewest_layers_within_the_margin():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from tools import train_semantics as ts
+
+    six, three = (
+        sh.HeadConfig(inputs="tuned", tuned_layers=3),
+        sh.HeadConfig(inputs="tuned", tuned_layers=3, encoder_layers=(1, 3, 5)),
+    )
+    assert ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - ts.SHIP_MARGIN / 2, three)}) == "student"
+    assert ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - 2 * ts.SHIP_MARGIN, three)}) == "tuned"
+    assert ts.ship_choice({"eq3": (0.80, six), "tuned": (0.90, six)}) == "tuned"

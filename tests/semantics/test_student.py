@@ -1,0 +1,38 @@
+"""The distilled student encoder (#34 item 4; tools/train_semantics.py's "student" option): it starts as the
+teacher's chosen layers, its final states are the encoder's own (the pooled sentence vector matches
+encoder.encode_ids), and a few distillation steps lower the loss without touching the frozen embeddings."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from jgrounding.semantics import encoder
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root holds tools/
+from tools import train_semantics as ts  # noqa: E402
+
+TEXTS = [f"Please {w} the guest at the door, {a}." for w in ("greet", "hug", "wave at") for a in ("gently", "now")]
+
+
+def test_states_pool_to_the_encoders_sentence_vector():
+    params = encoder.load_params()
+    ids, mask = encoder.tokenize(["Give a small hello wave."])
+    x = np.asarray(encoder.token_states(params, ids, mask))
+    m = mask[..., None].astype(np.float32)
+    pooled = (x * m).sum(1) / m.sum(1)
+    pooled /= np.linalg.norm(pooled, axis=-1, keepdims=True)
+    np.testing.assert_allclose(pooled, np.asarray(encoder.encode_ids(params, ids, mask)), atol=1e-5)
+
+
+def test_the_student_starts_as_the_chosen_layers_and_a_few_steps_lower_the_loss(monkeypatch):
+    monkeypatch.setattr(ts, "DISTILL_BATCH", 4)
+    teacher = encoder.load_numpy()
+    first, _ = ts.distill(teacher, (2, 5), TEXTS[:4], steps=1, progress=False)
+    student, losses = ts.distill(teacher, (2, 5), TEXTS[:4], steps=40, progress=False)
+    assert losses[-1][1] < losses[0][1]
+    np.testing.assert_array_equal(np.asarray(student["word"]), teacher["word"])
+    assert np.asarray(student["layers"]["q"]["w"]).shape[0] == 2
+    # It starts from the chosen layers: one AdamW step moves each weight by about the learning rate at most.
+    moved = np.abs(np.asarray(first["layers"]["q"]["w"]) - teacher["layers"]["q"]["w"][[2, 5]]).max()
+    assert 0 < moved <= 2 * ts.DISTILL_LR
