@@ -71,6 +71,7 @@ class Hold:
 
     kind: str
     evidence: str
+    p: float = 1.0  # how sure the decision is that the text calls for no motion (the rule: 1; the detector: its p)
 
     @property
     def reason(self) -> str:
@@ -370,7 +371,7 @@ def check(text: str, st: structure.Structure | None = None, vector=None, *, lear
             vectors = sentence_vectors([text])
             vector = None if vectors is None else vectors[0]
         if vector is not None and (p := float(d.probability(np.asarray(vector)[None])[0])) >= d.threshold:
-            hold = Hold(LEARNED, f"learned detector, p = {p:.2f}")
+            hold = Hold(LEARNED, f"learned detector, p = {p:.2f}", p)
     if hold is None or chosen_motion(text, st):
         return None
     return hold
@@ -408,9 +409,15 @@ def apply(text: str, g: Grounding, st: structure.Structure | None = None, vector
     A learned hold of a grounding the reducer already did not act on keeps the reducer's reason first ("a system
     or log line (reads as no behaviour, p = 1.00); the text calls for no motion (learned detector, p = 0.99)"):
     the detector says no more than that the text calls for no motion, the reducer often says what kind of text
-    it is."""
+    it is.
+
+    A held grounding's ``confidence`` is the reducer's p(m) times the probability that the text asks for a motion
+    at all, ``1 - hold.p`` (0 for the rule's holds, one minus the detector's p for its own): how sure the whole
+    decision is that the tuple is the motion to make, so a held text no longer reports the reducer's confidence
+    in a motion it was held from. ``scores`` keep the reducer's distribution."""
     hold = check(text, st, vector)
     if hold is None:
         return g
     reason = f"{g.reason}; {hold.reason}" if hold.kind == LEARNED and not g.confident and g.reason else hold.reason
-    return dataclasses.replace(g, confident=False, reason=reason, no_motion=hold.kind)
+    confidence = round(g.confidence * (1.0 - hold.p), 4)
+    return dataclasses.replace(g, confident=False, reason=reason, no_motion=hold.kind, confidence=confidence)

@@ -170,7 +170,9 @@ def test_apply_holds_a_confident_grounding_with_the_reason():
     held = nomotion.apply(text, g)
     assert not held.confident and held.no_motion == "rules_out"
     assert held.reason.startswith("the text rules the motion out (")
-    assert dataclasses.replace(held, confident=True, reason="", no_motion="") == g  # the tuple is kept
+    # The tuple and the reducer's scores are kept; a rule's hold is sure, so no confidence in acting is left.
+    assert held.confidence == 0.0
+    assert dataclasses.replace(held, confident=True, reason="", no_motion="", confidence=g.confidence) == g
     assert nomotion.apply("Wave hello!", g) is g
 
 
@@ -181,6 +183,8 @@ def test_a_learned_hold_keeps_the_reason_of_a_reducer_that_did_not_act():
     unsure = dataclasses.replace(g, confident=False, reason="a system or log line (reads as no behaviour, p = 0.99)")
     held = nomotion.apply(text, unsure)
     assert held.no_motion == nomotion.LEARNED
+    p = float(held.reason.split("learned detector, p = ")[1][:4])
+    assert held.confidence == pytest.approx(g.confidence * (1 - p), abs=0.006)  # p is printed to 2 places
     assert held.reason.startswith(
         "a system or log line (reads as no behaviour, p = 0.99); the text calls for no motion"
     )
