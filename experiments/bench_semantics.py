@@ -32,7 +32,11 @@ timed on the same texts, pass by pass in alternation with it (:func:`peer_compar
 (cosine >= 0.999 for every text, else :class:`ParityError`). The ratios, the achieved GFLOP/s of both against a
 matmul rate measured in the same run, and the CPU go into the peer block of ``results/bench_semantics.md`` (between
 ``<!-- semantics-peer:start -->`` and ``<!-- semantics-peer:end -->``) and under ``"peer"`` in the ``.json``; a run
-without the peer keeps the block. ``--peer-only`` (``make bench-peer``) runs the peer alone and rewrites only that block.
+without the peer keeps the block. ``--peer-only`` (``make bench-peer``) runs the peer alone and rewrites only that block. Where the shipped encoder
+runs fewer layers than MiniLM's six (the distilled student), the peer also runs the six-layer all-MiniLM-L6-v2 from
+its own weights, eager, what a user of sentence-transformers would run instead; #34's speed goal is read off the
+peer rows (:func:`speed_goal_line`). #34's accuracy goals are read on both frozen blind benches
+(:func:`blind_goal_rows`, its own table after #24's).
 """
 
 from __future__ import annotations
