@@ -580,9 +580,10 @@ def main(argv=None) -> int:
         opt = OPTIONS[name]
         deltas = None
         if opt["inputs"] == "tuned":
-            if name == "student" and "tuned" not in results:
-                raise SystemExit("the student option distils the tuned option's encoder: --options tuned,student")
-            teacher = results["tuned"]["_encoder"] if name == "student" else None
+            student = bool(opt.get("encoder_layers"))  # an encoder of fewer layers: distilled from "tuned"
+            if student and "tuned" not in results:
+                raise SystemExit(f"the {name} option distils the tuned option's encoder: --options tuned,{name}")
+            teacher = results["tuned"]["_encoder"] if student else None
             params, deltas, cfg = cached_finetune(name, rows, row_weight, reasons, teacher)
             # Dev features through the shipped path: the float16 deltas on the frozen encoder, as ground() reads them.
             tuned = sh.Head(params, cfg, 1.0, 0.5, {}, sh.with_top(deltas, cfg))
