@@ -32,8 +32,8 @@ timed on the same texts, pass by pass in alternation with it (:func:`peer_compar
 (cosine >= 0.999 for every text, else :class:`ParityError`). The ratios, the achieved GFLOP/s of both against a
 matmul rate measured in the same run, and the CPU go into the peer block of ``results/bench_semantics.md`` (between
 ``<!-- semantics-peer:start -->`` and ``<!-- semantics-peer:end -->``) and under ``"peer"`` in the ``.json``; a run
-without the peer keeps the block. ``--peer-only`` (``make bench-peer``) runs the peer alone and rewrites only that block. Where the shipped encoder
-runs fewer layers than MiniLM's six (the distilled student), the peer also runs the six-layer all-MiniLM-L6-v2 from
+without the peer keeps the block. ``--peer-only`` (``make bench-peer``) runs the peer alone and rewrites only that
+block. Where the shipped encoder runs fewer layers than MiniLM's six (the distilled student), the peer also runs the six-layer all-MiniLM-L6-v2 from
 its own weights, eager, what a user of sentence-transformers would run instead; #34's speed goal is read off the
 peer rows (:func:`speed_goal_line`). #34's accuracy goals are read on both frozen blind benches
 (:func:`blind_goal_rows`, its own table after #24's).
@@ -99,8 +99,8 @@ TRIED = {
     "lighter generated corpus, model soups, 1,920 nearest-neighbour vote variants (one shipped), a stronger encoder "
     "(none in the registry that ships its weights fits the budget): docs/how_it_works.md, section 1",
     "ms_median": "bucketed padding, one compiled program per call, float16-stored matrices, less Python per text, "
-    "XNNPACK and oneDNN, bfloat16, a fused QKV product, the classic runtime, a three-layer distilled student (shipped); the products' rate is in the bucket "
-    "table above: docs/how_it_works.md, section 1, 'Speed'",
+    "XNNPACK and oneDNN, bfloat16, a fused QKV product, the classic runtime, a three-layer distilled student "
+    "(shipped); the products' rate is in the bucket table above: docs/how_it_works.md, section 1, 'Speed'",
     "ms_p99": "pinning the process to one core under load: docs/how_it_works.md, section 1, 'Speed'",
 }
 FIRST_CALL = (
@@ -762,6 +762,12 @@ def speed_goal_line(rows: dict) -> str:
     )
 
 
+def machine() -> str:
+    """The machine a timing ran on, for every timing line: CPU model, its widest vector unit, and the XLA_FLAGS that
+    may limit what XLA uses (``--xla_cpu_max_isa=AVX2``)."""
+    return f"{os.cpu_count()} cores, {cpu_model()}, {cpu_isa()}, XLA_FLAGS {os.environ.get('XLA_FLAGS') or 'none'}"
+
+
 def with_peer_block(text: str, block: str) -> str:
     """``text`` with its peer block (between :data:`PEER_START` and :data:`PEER_END`) replaced by ``block``, or
     ``block`` appended where it has none; the rest unchanged."""
@@ -1046,7 +1052,7 @@ def main(argv=None) -> int:
         lines.append("")
     lines += [
         f"#### Latency (ms per response, each text alone, both test splits, {TIMING_PASSES} passes per reducer in "
-        f"rotated order; {os.cpu_count()} CPU cores ({cpu_model()}, {cpu_isa()}) shared with other work: load average "
+        f"rotated order; {machine()}; shared with other work: load average "
         f"{load[0]:.1f} before and {os.getloadavg()[0]:.1f} after the timed runs)",
         "",
         "| reducer | warm median | p99 | median of each pass |",
@@ -1065,7 +1071,8 @@ def main(argv=None) -> int:
             else []
         ),
         "",
-        f"First `jg.ground` in a fresh process (import, weights, compile or cache load): {np.median(first_warm):.2f} s "
+        f"First `jg.ground` in a fresh process ({machine()}; import, weights, compile or cache load): "
+        f"{np.median(first_warm):.2f} s "
         f"with the compilation cache warm (median of 3: {', '.join(f'{x:.2f}' for x in first_warm)}), "
         f"{first_cold:.2f} s with an empty cache. Batched (`jg.ground_many`, v2 test at once, warm, median of 3): {batched_ms:.2f} ms "
         "per response.",
@@ -1073,7 +1080,8 @@ def main(argv=None) -> int:
     ]
     if parts:
         lines += [
-            f"Where a warm `jg.ground` of one text goes (same texts, load average {os.getloadavg()[0]:.1f}): "
+            f"Where a warm `jg.ground` of one text goes (same texts, {machine()}, load average "
+            f"{os.getloadavg()[0]:.1f}): "
             f"{parts['prep_ms_median']:.2f} ms median preparing the inputs in Python (structure rules, tokenizer, "
             f"span pools, cues), {parts['program_ms_median']:.2f} ms (p99 {parts['program_ms_p99']:.2f}) in the one "
             f"compiled program (the encoder's {parts['encoder_layers']} layers at the text's token bucket, then the "
@@ -1092,7 +1100,8 @@ def main(argv=None) -> int:
             f"two per layer; norms, GELU, softmax, the head and the vote left out) over the whole program's median "
             f"time, a lower bound on the rate; peak: {peak_text}.",
             "",
-            f"The encoder alone on the v2 test texts, one at a time, with its dense matrices stored in float16 as "
+            f"The encoder alone on the v2 test texts ({machine()}), one at a time, with its dense matrices stored in "
+            "float16 as "
             f"grounding keeps them (widened to float32 in the program): {precision['float16_ms']:.2f} ms median, "
             f"against {precision['float32_ms']:.2f} ms with the same matrices stored in float32, alternating text by "
             f"text ({precision['ratio']:.2f}x).",

@@ -6,7 +6,8 @@
 Training data: every ``assets/semantics_train/*.jsonl`` (the independently written corpora and our generated
 one; all disjoint from the evaluation sets) and the blind writers' training splits of #34 (:data:`BLIND_TRAIN`:
 contrast texts and texts that call for no motion, in nine kinds; their frozen ``bench.jsonl`` is read only by
-``python -m experiments.bench semantics``; ``--no-blind`` leaves them out). Rows with intent ``"none"`` teach the no-behaviour class; their
+``python -m experiments.bench semantics``; ``--no-blind`` leaves them out). Rows with intent ``"none"`` teach the
+no-behaviour class; their
 ``style`` (addressee, quoted, system, ...) teaches the reason head that says why a text calls for no motion.
 
 Options (:data:`OPTIONS`) are compared on the dev splits: ``assets/semantics_eval_v2/dev.jsonl`` (the styles
@@ -40,7 +41,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jgrounding.semantics import calibration, cue_reducer, features
+from jgrounding.semantics import calibration, cue_reducer, encoder, features
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
@@ -71,8 +72,8 @@ OPTIONS = {
     # similarities (they live in the frozen encoder's space).
     "tuned": dict(inputs="tuned", hidden=128, tuned_layers=3, epochs=8),
     # A faster encoder (#34 item 4): the "tuned" option's six layers (the teacher, trained in the same run; a re-run
-    # reads both from the cache, cached_finetune) distilled into three of them (MiniLM layers 1, 3, 5: every other one, ending with the
-    # tuned top layer) on the training texts' final token states (DISTILL_STEPS), then all three trained with a new
+    # reads both from the cache, cached_finetune) distilled into three of them (MiniLM layers 1, 3, 5: every other
+    # one, ending with the tuned top layer) on the training texts' final token states (DISTILL_STEPS), then all three trained with a new
     # head as "tuned" trains its top three. Shipped when its dev score is within SHIP_MARGIN of the best.
     "student": dict(inputs="tuned", hidden=128, tuned_layers=3, epochs=8, encoder_layers=(1, 3, 5)),
 }
@@ -463,12 +464,6 @@ def ship_choice(scored: dict) -> str:
     return min(near, key=lambda k: (scored[k][1].num_encoder_layers, -scored[k][0], list(scored).index(k)))
 
 
-def encoder_params_numpy() -> dict:
-    from jgrounding.semantics import encoder
-
-    return encoder.load_numpy()
-
-
 def cached_finetune(name, rows, row_weight, reasons, teacher=None):
     """:func:`finetune` of option ``name`` (a "student" first distilled from ``teacher``, :func:`distill`), through
     a cache in ``.cache/semantics/`` keyed by the training rows, their weights, the option, the distillation
@@ -583,15 +578,13 @@ def main(argv=None) -> int:
             student = bool(opt.get("encoder_layers"))  # an encoder of fewer layers: distilled from "tuned"
             if student and "tuned" not in results:
                 raise SystemExit(f"the {name} option distils the tuned option's encoder: --options tuned,{name}")
-            teacher = results["tuned"]["_encoder"] if student else None
+            teacher = None
+            if student:  # the tuned option's trained encoder, in float32
+                t = results["tuned"]
+                teacher = dict(encoder.load_numpy(), layers=sh.merged_layers(t["_deltas"], t["_cfg"]))
             params, deltas, cfg = cached_finetune(name, rows, row_weight, reasons, teacher)
             # Dev features through the shipped path: the float16 deltas on the frozen encoder, as ground() reads them.
             tuned = sh.Head(params, cfg, 1.0, 0.5, {}, sh.with_top(deltas, cfg))
-            encoder_f32 = jax.tree.map(  # the teacher of a later student: float32 weights
-                lambda b, d: np.concatenate([b[: -cfg.tuned_layers], b[-cfg.tuned_layers :] + np.float32(d)]),
-                sh.base_layers(cfg),
-                deltas,
-            )
             xd = features.head_inputs(tuned, [r["text"] for r in dev])
             xp = features.head_inputs(tuned, [r["text"] for r in plain])
         else:
@@ -619,7 +612,6 @@ def main(argv=None) -> int:
             _cfg=cfg,
             _deltas=deltas,
             _xd=xd,
-            _encoder=None if deltas is None else dict(encoder_params_numpy(), layers=encoder_f32),
         )
         print(
             f"  {name:15s} score {score:.3f} | v2 dev: intent {r['intent_motion']:.3f} exact {r['intensity_exact']:.3f}"

@@ -129,8 +129,9 @@ INTERMEDIATE = 4 * HIDDEN  # ff1's width
 
 def matmul_flops(length: int, rows: int = 1, layers: int = NUM_LAYERS) -> int:
     """FLOPs (two per multiply-add) of the encoder's matrix products for ``rows`` texts padded to ``length`` tokens
-    through ``layers`` layers (a distilled student runs fewer than MiniLM's six): per layer the six dense products (q, k, v, o: 384 x 384; ff1, ff2: 384 x 1536) and attention's two
-    (scores and context: length x length x 384 each). Norms, GELU and softmax are left out, so a rate computed
+    through ``layers`` layers (a distilled student runs fewer than MiniLM's six): per layer the six dense products
+    (q, k, v, o: 384 x 384; ff1, ff2: 384 x 1536) and attention's two (scores and context: length x length x 384
+    each). Norms, GELU and softmax are left out, so a rate computed
     from this is a lower bound on the arithmetic done."""
     dense = 4 * HIDDEN * HIDDEN + 2 * HIDDEN * INTERMEDIATE
     return rows * layers * 2 * (length * dense + 2 * length * length * HIDDEN)

@@ -356,6 +356,16 @@ def top_deltas(top: dict, cfg: HeadConfig) -> dict:
     return jax.tree.map(lambda t, b: (np.asarray(t, np.float32) - b).astype(np.float16), top, base)
 
 
+def merged_layers(deltas: dict, cfg: HeadConfig, layers: dict | None = None) -> dict:
+    """The encoder's stacked layers in float32 numpy (:func:`base_layers`, ``layers``: all six, already read) with
+    the top ``cfg.tuned_layers`` replaced by base + ``deltas``: the trained encoder's weights, before
+    :func:`with_top` stores them for grounding."""
+    k = cfg.tuned_layers
+    return jax.tree.map(
+        lambda b, d: np.concatenate([b[:-k], b[-k:] + np.asarray(d, np.float32)]), base_layers(cfg, layers), deltas
+    )
+
+
 def with_top(deltas: dict, cfg: HeadConfig) -> dict:
     """The encoder's weights (the layers ``cfg.encoder_layers`` keeps) with its top ``cfg.tuned_layers`` layers
     replaced by base + ``deltas``, as grounding reads them: the dense matrices stored in float16
@@ -367,11 +377,7 @@ def with_top(deltas: dict, cfg: HeadConfig) -> dict:
 
     encoder.enable_compilation_cache()
     params = dict(encoder.load_numpy())
-    params["layers"] = base_layers(cfg, params["layers"])
-    k = cfg.tuned_layers
-    params["layers"] = jax.tree.map(
-        lambda b, d: np.concatenate([b[:-k], b[-k:] + np.asarray(d, np.float32)]), params["layers"], deltas
-    )
+    params["layers"] = merged_layers(deltas, cfg, params["layers"])
     return jax.device_put(encoder.half_matrices(params))
 
 
