@@ -223,3 +223,17 @@ def test_ship_rule_takes_the_fewest_layers_within_the_margin():
     assert ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - ts.SHIP_MARGIN / 2, three)}) == "student"
     assert ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - 2 * ts.SHIP_MARGIN, three)}) == "tuned"
     assert ts.ship_choice({"eq3": (0.80, six), "tuned": (0.90, six)}) == "tuned"
+
+
+def test_the_ship_score_counts_the_situation_hold_out_as_one_more_term():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from tools import train_semantics as ts
+
+    r = dict(intent_motion=0.9, intensity_exact=0.8, coverage_motion=0.9, none_held=0.9)
+    plain = dict(intent_motion=1.0)
+    assert ts.dev_score(r, plain) == pytest.approx(0.9)
+    assert ts.dev_score(r, plain, dict(intent_motion=0.6)) == pytest.approx(0.85)
+    # a better situation reader outranks a worse one with the same dev figures
+    assert ts.dev_score(r, plain, dict(intent_motion=0.8)) > ts.dev_score(r, plain, dict(intent_motion=0.6))

@@ -5,6 +5,7 @@ encoder.encode_ids), and a few distillation steps lower the loss without touchin
 import sys
 from pathlib import Path
 
+import jax
 import numpy as np
 
 from jgrounding.semantics import encoder
@@ -36,3 +37,25 @@ def test_the_student_starts_as_the_chosen_layers_and_a_few_steps_lower_the_loss(
     # It starts from the chosen layers: one AdamW step moves each weight by about the learning rate at most.
     moved = np.abs(np.asarray(first["layers"]["q"]["w"]) - teacher["layers"]["q"]["w"][[2, 5]]).max()
     assert 0 < moved <= 2 * ts.DISTILL_LR
+
+
+def test_a_distillation_is_cached_and_read_back(monkeypatch, tmp_path, capsys):
+    monkeypatch.setattr(ts, "DISTILL_BATCH", 4)
+    monkeypatch.setattr(ts, "DISTILL_STEPS", 3)
+    monkeypatch.setattr(ts, "CACHE", tmp_path)
+    teacher = encoder.load_numpy()
+    first = ts.cached_distill(teacher, (1, 4), TEXTS[:4])
+    assert len(list(tmp_path.glob("distill-*.npz"))) == 1
+    second = ts.cached_distill(teacher, (1, 4), TEXTS[:4])
+    assert "distilled before" in capsys.readouterr().out
+    for a, b in zip(jax.tree.leaves(first), jax.tree.leaves(second)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    ts.cached_distill(teacher, (1, 4), TEXTS[1:5])  # other texts: another distillation
+    assert len(list(tmp_path.glob("distill-*.npz"))) == 2
+
+
+def test_the_extra_distillation_texts_are_situations_without_motion_labels_used():
+    texts = ts.distill_texts()
+    assert len(texts) == 2048 and len(set(texts)) > 2000
+    held = {r["text"] for r in ts.read_jsonl(ts.SITUATION_DEV)}
+    assert not held & set(texts)  # the situation selection set is never distilled on
