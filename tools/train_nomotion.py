@@ -9,8 +9,10 @@ wording; the detector learns the same decision from examples. Data (nothing else
 - **no motion** (label 1): the texts with intent ``none`` of ``assets/semantics_eval_v3/train.jsonl`` (two blind
   writers' nine kinds) and ``assets/semantics_eval_w3/train.jsonl`` (a third blind writer's, the same kinds);
   never their ``bench.jsonl``, which only ``python -m experiments.bench_semantics`` reads;
-- **motion** (label 0): those files' contrast texts ("don't X; just Y": they choose a motion) and every motion text
-  of ``assets/semantics_train/*.jsonl``, the head's own training corpora (their ``none`` rows are not used).
+- **motion** (label 0): those files' contrast texts ("don't X; just Y": they choose a motion), the situation-only
+  and mixed texts of ``assets/semantics_eval_s3/train.jsonl`` (a fourth blind writer's; each style its own source)
+  and every motion text of ``assets/semantics_train/*.jsonl``, the head's own training corpora (their ``none``
+  rows are not used).
 
 Features: the shipped head's sentence vector (the tuned encoder's whole-text pooling, computed by the same
 program ``jg.ground`` runs, :func:`jgrounding.semantics.embedded.predict_tuned_many`). Model: standardized inputs,
@@ -67,7 +69,11 @@ def training_rows(blind=None, train_dir=TRAIN_DIR) -> list[dict]:
         {
             "text": r["text"],
             "label": int(r["intent"] == "none"),
-            "source": NO_MOTION if r["intent"] == "none" else CONTRAST,
+            "source": NO_MOTION
+            if r["intent"] == "none"
+            else CONTRAST
+            if r["style"] == "contrast"
+            else f"blind {r['style']}",
         }
         for path in blind
         for r in read_jsonl(path)

@@ -71,9 +71,12 @@ TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test 
 # (situations_blind.jsonl: the vote-only rows of assets/semantics_vote/, for a head retrained with them through
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
-# The blind writers' training splits (#34): two writers' (v3) and a third's (w3) contrast and no-motion texts, each
-# file weighing as the structure corpus. Their bench.jsonl stays frozen. tools.train_nomotion reads the same files.
-BLIND_TRAIN = tuple(ROOT / "assets" / d / "train.jsonl" for d in ("semantics_eval_v3", "semantics_eval_w3"))
+# The blind writers' training splits (#34): two writers' (v3) and a third's (w3) contrast and no-motion texts, and a
+# fourth's (s3) situation-only and mixed texts, each file weighing as the structure corpus. Their bench.jsonl stays
+# frozen. tools.train_nomotion reads the same files.
+BLIND_TRAIN = tuple(
+    ROOT / "assets" / d / "train.jsonl" for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3")
+)
 BLIND_WEIGHT = 2.0
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),

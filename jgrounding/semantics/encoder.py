@@ -118,9 +118,13 @@ def layer_norm(x, p):
 
 
 def _dense(x, p):
-    # A matrix stored in float16 (:func:`half_matrices`) is widened here, inside the program: the product and sums
-    # stay float32 (a no-op for float32 weights).
-    return x @ p["w"].astype(x.dtype) + p["b"]
+    # A matrix stored in int8 with a scale per output column, or in float16 (:func:`stored_matrices`), is widened
+    # here, inside the program: the product and sums stay float32 (a no-op for float32 weights). The scale is
+    # applied to the product's columns, which equals widening the matrix to w * s first.
+    y = x @ p["w"].astype(x.dtype)
+    if "s" in p:
+        y = y * p["s"]
+    return y + p["b"]
 
 
 DENSE = ("q", "k", "v", "o", "ff1", "ff2")
@@ -137,16 +141,45 @@ def matmul_flops(length: int, rows: int = 1, layers: int = NUM_LAYERS) -> int:
     return rows * layers * 2 * (length * dense + 2 * length * length * HIDDEN)
 
 
-def half_matrices(params: dict) -> dict:
-    """The encoder's weights (numpy) with the six transformer layers' dense matrices stored as float16 (biases,
-    norms and embeddings stay float32): the form the grounding path keeps on the device.
+# How grounding stores the transformer layers' dense matrices on the device (one place: head.with_top reads it).
+# "int8": each matrix in int8 with a float32 scale per output column (max |w| of the column / 127), a quarter of
+# float32's bytes; "float16": half; "float32": as trained. A single text's program is bound by reading these
+# matrices, not by the arithmetic (docs/how_it_works.md, 'Speed'), so fewer bytes make a warm call faster.
+MATRIX_STORAGE = "int8"
+STORAGES = ("int8", "float16", "float32")
 
-    A single text's program is bound by reading those matrices (42 MB in float32, more than the 32 MB L3 cache of
-    the machines we measured on), not by arithmetic, so storing them in half the bytes makes a warm call about a
-    third faster there; :func:`_dense` widens each matrix to float32 before its product. The pooled vectors move
-    by about 1e-4 (``tests/semantics/test_speed_paths.py``). Training reads the float32 weights."""
+
+def stored_matrices(params: dict, storage: str = MATRIX_STORAGE) -> dict:
+    """The encoder's weights (numpy) with the stacked layers' dense matrices stored as ``storage`` (biases, norms
+    and embeddings stay float32): the form the grounding path keeps on the device. :func:`_dense` widens each
+    matrix to float32 (and applies an int8 matrix's column scales ``s``) inside the program. The pooled vectors
+    move by about 1e-4 in float16 and 1e-2 in int8 (``tests/semantics/test_speed_paths.py``). Training reads the
+    float32 weights."""
+    if storage not in STORAGES:
+        raise ValueError(f"unknown matrix storage {storage!r}; valid: {', '.join(STORAGES)}")
+
+    def store(p):
+        w = np.asarray(p["w"], np.float32)
+        if storage == "float32":
+            return {"w": w, "b": p["b"]}
+        if storage == "float16":
+            return {"w": w.astype(np.float16), "b": p["b"]}
+        scale = np.maximum(np.abs(w).max(-2, keepdims=True), 1e-12) / 127.0  # per output column, every layer
+        return {"w": np.round(w / scale).astype(np.int8), "s": scale.astype(np.float32), "b": p["b"]}
+
+    layers = {name: (store(p) if name in DENSE else p) for name, p in params["layers"].items()}
+    return dict(params, layers=layers)
+
+
+def float_matrices(params: dict) -> dict:
+    """``params`` with every stored dense matrix widened to the float32 values the program computes with
+    (``w * s`` for int8), and no scales: what an outside runtime given the same weights must read."""
     layers = {
-        name: ({"w": np.asarray(p["w"], np.float16), "b": p["b"]} if name in DENSE else p)
+        name: (
+            {"w": np.asarray(p["w"], np.float32) * np.asarray(p.get("s", 1.0), np.float32), "b": p["b"]}
+            if name in DENSE
+            else p
+        )
         for name, p in params["layers"].items()
     }
     return dict(params, layers=layers)

@@ -368,8 +368,8 @@ def merged_layers(deltas: dict, cfg: HeadConfig, layers: dict | None = None) -> 
 
 def with_top(deltas: dict, cfg: HeadConfig) -> dict:
     """The encoder's weights (the layers ``cfg.encoder_layers`` keeps) with its top ``cfg.tuned_layers`` layers
-    replaced by base + ``deltas``, as grounding reads them: the dense matrices stored in float16
-    (:func:`jgrounding.semantics.encoder.half_matrices`).
+    replaced by base + ``deltas``, as grounding reads them: the dense matrices stored as
+    :data:`jgrounding.semantics.encoder.MATRIX_STORAGE` says (:func:`jgrounding.semantics.encoder.stored_matrices`).
 
     Merged in numpy from the weights file and put on the device in one transfer (no small compiled ops and no
     second copy of the frozen encoder on a fresh process's first call)."""
@@ -378,7 +378,7 @@ def with_top(deltas: dict, cfg: HeadConfig) -> dict:
     encoder.enable_compilation_cache()
     params = dict(encoder.load_numpy())
     params["layers"] = merged_layers(deltas, cfg, params["layers"])
-    return jax.device_put(encoder.half_matrices(params))
+    return jax.device_put(encoder.stored_matrices(params))
 
 
 def save(path, params: dict, cfg: HeadConfig, meta: dict, top_delta: dict | None = None) -> Path:

@@ -12,18 +12,20 @@ from jgrounding.semantics import encoder
 
 
 def test_export_writes_every_encoder_weight_with_its_shape_and_our_tokens(tmp_path):
-    params = encoder.half_matrices(encoder.load_numpy())  # as grounding keeps them: dense matrices in float16
+    params = encoder.stored_matrices(encoder.load_numpy())  # as grounding keeps them: int8 matrices and scales
     texts = ["Wave hello.", "The user looks sad; comfort them gently and slowly, please, right now."]
     path = tmp_path / "w.npz"
     tokens = bench.export_peer(params, texts, path)
     with np.load(path) as f:
         saved = {k: f[k] for k in f.files}
     leaves = jax.tree_util.tree_leaves_with_path(params)
-    assert len(leaves) == 21  # word, pos, type, the LayerNorm's two and the layers' 16 stacked arrays
-    for keys, leaf in leaves:
+    assert len(leaves) == 27  # word, pos, type, the LayerNorm's two, the layers' 16 stacked arrays, 6 scales
+    values = encoder.float_matrices(params)
+    for keys, leaf in jax.tree_util.tree_leaves_with_path(values):
         name = "/".join(k.key for k in keys)
         assert saved[name].shape == leaf.shape and saved[name].dtype == np.float32, name
-        np.testing.assert_array_equal(saved[name], np.asarray(leaf, np.float32))  # float16 widened exactly
+        np.testing.assert_array_equal(saved[name], np.asarray(leaf, np.float32))  # widened, scales applied
+    assert not any(k.endswith("/s") for k in saved)  # the peer reads plain float32 matrices
     assert saved["layers/ff1/w"].shape == (encoder.NUM_LAYERS, encoder.HIDDEN, encoder.INTERMEDIATE)
     assert int(saved["num_heads"]) == encoder.NUM_HEADS and float(saved["ln_eps"]) == encoder.LN_EPS
     for i, text in enumerate(texts):

@@ -66,19 +66,41 @@ def test_warmup_compiles_every_bucket_a_text_alone_can_use(head):
     assert semantic_head.predict_tuned._cache_size() == before  # nothing traced after the warm-up
 
 
-def test_grounding_reads_half_stored_matrices_with_the_float32_result(head):
-    """The grounding path keeps the layers' dense matrices in float16 (half the bytes a call reads) and widens
-    them inside the program: the pooled vectors stay within 1e-3 of the float32 encoder's."""
+def test_grounding_reads_the_stored_matrices(head):
+    """The grounding path keeps the layers' dense matrices as encoder.MATRIX_STORAGE says (int8 with a float32
+    scale per output column) and widens them inside the program."""
     layers = head.encoder_params()["layers"]
-    assert {n: layers[n]["w"].dtype for n in encoder.DENSE} == {n: np.dtype(np.float16) for n in encoder.DENSE}
+    assert encoder.MATRIX_STORAGE == "int8"
+    assert {n: layers[n]["w"].dtype for n in encoder.DENSE} == {n: np.dtype(np.int8) for n in encoder.DENSE}
+    assert layers["q"]["s"].dtype == np.float32 and layers["q"]["s"].shape == (head.config.num_encoder_layers, 1, 384)
     assert layers["q"]["b"].dtype == np.float32 and layers["ln1"]["g"].dtype == np.float32
+
+
+@pytest.mark.parametrize("storage, bound", [("float16", 1e-3), ("int8", 2e-2), ("float32", 1e-6)])
+def test_each_storage_gives_the_float32_encoders_vectors_within_its_rounding(storage, bound):
+    """Pooled vectors within ``bound`` of the float32 encoder's (int8: a scale per output column, so a column's
+    largest weight is exact and the rest round to 1/254 of it); and the stored values widen back to the float32
+    weights within the same rounding (encoder.float_matrices, what the PyTorch peer reads)."""
+    weights = encoder.load_numpy()
     full = encoder.load_params()
-    half = jax.device_put(encoder.half_matrices(encoder.load_numpy()))
+    stored = encoder.stored_matrices(weights, storage)
+    back = encoder.float_matrices(stored)
+    w, wb = weights["layers"]["ff1"]["w"], back["layers"]["ff1"]["w"]
+    step = np.abs(w).max(-2, keepdims=True) / 127.0
+    assert np.all(np.abs(wb - w) <= (step / 2 + 1e-7 if storage == "int8" else np.abs(w) * 1e-3 + 1e-7))
+    dev = jax.device_put(stored)
     structs = [structure.analyse(t) for t in TEXTS]
     for idx, ids, mask, pools in features.encoder_batches(TEXTS, structs):
         a = np.asarray(encoder.pool_ids(full, ids, mask, pools))
-        b = np.asarray(encoder.pool_ids(half, ids, mask, pools))
-        assert 0 < np.abs(a - b).max() < 1e-3  # rounded, and only by rounding
+        b = np.asarray(encoder.pool_ids(dev, ids, mask, pools))
+        assert np.abs(a - b).max() < bound
+        if storage != "float32":
+            assert np.abs(a - b).max() > 0  # rounded, and only by rounding
+
+
+def test_an_unknown_storage_names_the_valid_ones():
+    with pytest.raises(ValueError, match="int8, float16, float32"):
+        encoder.stored_matrices(encoder.load_numpy(), "bfloat16")
 
 
 @pytest.mark.parametrize("length", [8, 40])

@@ -175,11 +175,14 @@ def test_tuned_layers_ship_as_float16_deltas_on_the_frozen_encoder():
     np.testing.assert_array_equal(
         np.asarray(merged["layers"]["q"]["b"][:-2]), np.asarray(base["layers"]["q"]["b"][:-2])
     )
-    # The matrices as grounding reads them: the float32 merge stored in float16 (encoder.half_matrices).
-    w = np.asarray(merged["layers"]["q"]["w"])
-    assert w.dtype == np.float16
-    np.testing.assert_allclose(w[-2:].astype(np.float32), top["q"]["w"], rtol=1e-3, atol=1e-5)
-    np.testing.assert_array_equal(w[:-2], np.asarray(base["layers"]["q"]["w"][:-2]).astype(np.float16))
+    # The matrices as grounding reads them: the float32 merge stored as encoder.MATRIX_STORAGE (int8 + scales).
+    q = jax.tree.map(np.asarray, merged["layers"]["q"])
+    assert q["w"].dtype == np.int8
+    w = encoder.float_matrices(dict(layers={"q": q}))["layers"]["q"]["w"]
+    step = np.abs(np.concatenate([np.asarray(base["layers"]["q"]["w"][:-2]), top["q"]["w"]])).max(-2) / 127
+    assert np.all(np.abs(w[-2:] - top["q"]["w"]) <= step[-2:, None] / 2 + 1e-5)
+    stored = encoder.stored_matrices(dict(layers={"q": {"w": np.asarray(base["layers"]["q"]["w"][:-2]), "b": 0}}))
+    np.testing.assert_array_equal(q["w"][:-2], stored["layers"]["q"]["w"])
     flat = sh.flatten(deltas)
     assert "q/w" in flat and sh.unflatten(flat).keys() == deltas.keys()
 
