@@ -23,7 +23,7 @@ out of training and count as not held below.
 
 Threshold: out-of-fold probabilities of :data:`FOLDS`-fold cross-validation (folds stratified by source); the
 lowest threshold on a grid of :data:`STEP` at which the held-out folds hold at most :data:`MAX_FALSE_HOLD` of the
-motion texts of *every* source (the contrast texts and each corpus file apart, so that the templated corpus
+motion texts of *every* source (:data:`MAX_FALSE_HOLD_SITUATION` of the situation-only ones, :func:`max_false_hold`) (the contrast texts and each corpus file apart, so that the templated corpus
 cannot hide false holds on the situations). The detector shipped is then trained on all the rows. Deterministic:
 the same data, head and code give the same file (``--check``); the file records the data's digest and the head's.
 """
@@ -50,6 +50,20 @@ STEPS = 600
 SEED = 0
 FOLDS = 5
 MAX_FALSE_HOLD = 0.01  # at most this share of each source's motion texts held on the held-out folds
+# Situation-only texts (no motion word: a scene the writer judged to call for one) may be held up to this share:
+# writers disagree on whether a scene asks anything of the robot ("people still tapping at their laptops" is
+# resting to one, activity that asks nothing to another), and a held situation is the safe failure (the trunk holds
+# still, #34), while a text that names or chooses a motion held by mistake is a plain refusal to obey.
+MAX_FALSE_HOLD_SITUATION = 0.05
+SITUATION_SOURCES = ("blind situation",)  # the sources that bound applies to (s3's situation-only training texts)
+
+
+def max_false_hold(source: str) -> float:
+    """The bound on one source's held-out false holds (:data:`MAX_FALSE_HOLD`, or
+    :data:`MAX_FALSE_HOLD_SITUATION` for situation-only texts)."""
+    return MAX_FALSE_HOLD_SITUATION if source in SITUATION_SOURCES else MAX_FALSE_HOLD
+
+
 STEP = 0.0025  # the threshold grid
 # Source names of the blind writers' texts: one source per kind, every writer's together (the false-hold bound is
 # per source, and one writer's 192 contrast texts would make it "at most one text").
@@ -181,12 +195,21 @@ def false_holds(held: np.ndarray, label: np.ndarray, source: np.ndarray) -> dict
     return {s: float(held[(source == s) & (label == 0)].mean()) for s in sorted(set(source[label == 0].tolist()))}
 
 
-def choose_threshold(p, label, source, max_false_hold: float = MAX_FALSE_HOLD) -> float:
-    """The lowest threshold on the grid at which no source's motion texts are held more than ``max_false_hold``."""
+def within_bounds(false_hold: dict) -> bool:
+    """Whether every source's share of motion texts held is within its bound (:func:`max_false_hold`)."""
+    return all(v <= max_false_hold(s) + 1e-12 for s, v in false_hold.items())
+
+
+def choose_threshold(p, label, source) -> float:
+    """The lowest threshold on the grid at which no source's motion texts are held more than its bound
+    (:func:`max_false_hold`)."""
     for t in np.round(np.arange(STEP, 1.0, STEP), 4):
-        if max(false_holds(p >= t, label, source).values()) <= max_false_hold:
+        if within_bounds(false_holds(p >= t, label, source)):
             return float(t)
-    raise ValueError(f"no threshold holds at most {max_false_hold} of every source's motion texts")
+    raise ValueError(
+        f"no threshold holds at most {MAX_FALSE_HOLD} of every source's motion texts "
+        f"({MAX_FALSE_HOLD_SITUATION} of {', '.join(SITUATION_SOURCES)})"
+    )
 
 
 def train_detector(rows) -> tuple[dict, float, dict]:
@@ -201,7 +224,7 @@ def train_detector(rows) -> tuple[dict, float, dict]:
     source = np.array([r["source"] for r in rows])
     print(
         f"{len(rows)} texts: {label.sum()} no motion, {(source == CONTRAST).sum()} contrast, "
-        f"{((label == 0) & ~(source == CONTRAST)).sum()} corpus motion texts; encoding",
+        f"{((label == 0) & ~(source == CONTRAST)).sum()} other motion texts (corpora, blind situations and mixed); encoding",
         flush=True,
     )
     x = nomotion.sentence_vectors(texts)
@@ -233,6 +256,7 @@ def train_detector(rows) -> tuple[dict, float, dict]:
         "cv": {
             "folds": FOLDS,
             "max_false_hold": MAX_FALSE_HOLD,
+            "max_false_hold_situation": {s: MAX_FALSE_HOLD_SITUATION for s in SITUATION_SOURCES},
             "no_motion_held": round(float(held[label == 1].mean()), 4),
             "no_motion_held_with_rule": round(float(either[label == 1].mean()), 4),
             "false_hold": {s: round(v, 4) for s, v in false_holds(held, label, source).items()},
