@@ -665,7 +665,7 @@ def peer_comparison(splits: dict, python, n: int = PEER_TEXTS, reps: int = PEER_
     tok_ms = float(np.median(ours["tokenize"]))
     labels = {
         "jax_encoder": "JAX encoder alone (`encoder.encode_ids`, one text at its token bucket, matrices stored in "
-        "float16 as grounding keeps them)",
+        f"{encoder.MATRIX_STORAGE} as grounding keeps them)",
         "jg_ground": "`jg.ground` (the whole call: structure, tokenizer, encoder pooled 4 ways, head, vote)",
         "torch_eager": f"PyTorch {peer['torch']} eager, the text's own token count",
         "torch_eager_padded": f"PyTorch {peer['torch']} eager, padded to our token bucket",
@@ -1054,10 +1054,10 @@ def main(argv=None) -> int:
         n_none = sum(it["intent"] == "none" for it in items)
         kinds = len({it["style"] for it in items if it["intent"] == "none"})
         motion_styles = sorted({it["style"] for it in items if it["intent"] != "none"})
-        parts = [f"{n_none} call for no motion in {kinds} kinds"] if n_none else []
-        parts += [f"{sum(it['style'] == st for it in items)} {st}" for st in motion_styles]
+        contents = [f"{n_none} call for no motion in {kinds} kinds"] if n_none else []
+        contents += [f"{sum(it['style'] == st for it in items)} {st}" for st in motion_styles]
         lines += [
-            f"#### {split} ({BENCH_V3[split].relative_to(ROOT)}, {len(items)} texts: {', '.join(parts)}; written "
+            f"#### {split} ({BENCH_V3[split].relative_to(ROOT)}, {len(items)} texts: {', '.join(contents)}; written "
             "blind, frozen, read only here)",
             "",
             "Columns: n; intent = intent accuracy on the motion texts; acted = share of them acted on; none held = "
