@@ -146,13 +146,15 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
     if refit_temperature:
         temperature = calibration.fit_temperature(lambda t: sharpen(pm, t), dev_intent)
         pm, pm_plain = sharpen(pm, temperature), sharpen(pm_plain, temperature)
-    threshold = ts.calibrate_threshold(pm, pz, dev)
-    r = ts.selective(pm, pz, dev, threshold)
-    rp = ts.selective(pm_plain, pz_plain, plain, threshold)
-    holdout = {
-        name: ts.selective(sharpen(hm, temperature) if refit_temperature else hm, hz, hrows, threshold)
+    held = {
+        name: (sharpen(hm, temperature) if refit_temperature else hm, hz, hrows)
         for name, (hm, hz, hrows) in (held or {}).items()
     }
+    # the head's rule (ts.calibrate_threshold): v2 dev's confident wrongs, and the blind situations' ones
+    threshold = ts.calibrate_threshold(pm, pz, dev, situations=held.get("blind"))
+    r = ts.selective(pm, pz, dev, threshold)
+    rp = ts.selective(pm_plain, pz_plain, plain, threshold)
+    holdout = {name: ts.selective(*h, threshold) for name, h in held.items()}
     m, _, _ = sh.decide(pm, pz)
     sit = np.array([row.get("style") == "situation" for row in dev])
     return dict(

@@ -160,6 +160,27 @@ def test_training_is_deterministic_and_calibration_meets_its_target(tmp_path):
         assert {k.split("/", 1)[1] for k in f.files if k.startswith("param/")} == set(p1)
 
 
+def test_the_threshold_keeps_the_situations_confident_wrongs_within_the_budget_too():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from tools import train_semantics as ts
+
+    def probs(right: list[bool], conf: float):
+        pm = np.full((len(right), sh.NUM_CLASSES), (1 - conf) / (sh.NUM_CLASSES - 1))
+        for i, ok in enumerate(right):
+            pm[i, 0 if ok else 1] = conf
+        return pm, np.full((len(right), 4), 0.25)
+
+    dev = [{"text": "t", "intent": jg.INTENTS[0], "intensity": "subtle"}] * 50
+    pm, pz = probs([True] * 50, 0.6)  # dev: every text right at 0.6
+    sit_rows = [{"text": "s", "intent": jg.INTENTS[0], "intensity": "subtle"}] * 20
+    spm, spz = probs([True] * 18 + [False] * 2, 0.7)  # situations: 10 % wrong at 0.7
+    assert ts.calibrate_threshold(pm, pz, dev) == 0.1
+    t = ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows))
+    assert t == 0.725 and ts.selective(spm, spz, sit_rows, t)["confident_wrong"] == 0
+
+
 def test_semantics_module_exports_ground_many():
     assert semantics.ground_many is jg.ground_many
 
