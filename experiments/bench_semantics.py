@@ -4,8 +4,9 @@ Reads the TEST splits only here (never tuned on): ``assets/semantics_eval_v2/tes
 texts and eight kinds of texts that call for no motion), the plainly worded ``assets/semantics_eval/test.jsonl`` and
 the frozen blind benches of #34, ``assets/semantics_eval_v3/bench.jsonl`` (two writers) and
 ``assets/semantics_eval_w3/bench.jsonl`` (a third writer, 2026-12-04): nine kinds of texts that call for no motion
-and contrast texts that reject one motion and choose another, and ``assets/semantics_eval_s3/bench.jsonl`` (a fourth
-writer): situation-only and mixed texts; this script is the only reader of those files. Each
+and contrast texts that reject one motion and choose another, ``assets/semantics_eval_s3/bench.jsonl`` (a fourth
+writer): situation-only and mixed texts, and ``assets/semantics_eval_s4/bench.jsonl`` (a fifth writer, all of it
+frozen): situation-only texts; this script is the only reader of those files. Each
 blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
@@ -69,11 +70,12 @@ SPLITS = {
     "plain test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
 }
 # The frozen blind benches of #34 (accuracy only, not timed): two writers' (v3) and a third writer's (w3) no-motion
-# and contrast texts, and a fourth writer's (s3) situation-only and mixed texts.
+# and contrast texts, a fourth writer's (s3) situation-only and mixed texts, and a fifth writer's (s4) situations.
 BENCH_V3 = {
     "v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl",
     "w3 bench": ROOT / "assets" / "semantics_eval_w3" / "bench.jsonl",
     "s3 bench": ROOT / "assets" / "semantics_eval_s3" / "bench.jsonl",
+    "s4 bench": ROOT / "assets" / "semantics_eval_s4" / "bench.jsonl",
 }
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {

@@ -1,6 +1,7 @@
 """Structure-aware grounding (#24): spans and flags, pooled features, batched grounding, the reason for holding
 still, the compilation cache and the training tool's pieces (tiny data, no long training)."""
 
+import json
 from pathlib import Path
 
 import jax
@@ -261,3 +262,15 @@ def test_the_ship_score_counts_the_situation_hold_out_as_one_more_term():
     assert ts.dev_score(r, plain, dict(intent_motion=0.6)) == pytest.approx(0.85)
     # a better situation reader outranks a worse one with the same dev figures
     assert ts.dev_score(r, plain, dict(intent_motion=0.8)) > ts.dev_score(r, plain, dict(intent_motion=0.6))
+
+
+def test_a_default_training_run_compares_the_options_of_the_shipped_heads_run():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from tools import train_semantics as ts
+
+    assert set(ts.DEFAULT_OPTIONS) <= set(ts.OPTIONS)
+    assert sh.load().meta["selected"] in ts.DEFAULT_OPTIONS
+    report = json.loads((ts.ROOT / "results" / "semantics_dev_options.json").read_text())
+    assert sorted(report) == sorted(ts.DEFAULT_OPTIONS)
