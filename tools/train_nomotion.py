@@ -23,8 +23,9 @@ out of training and count as not held below.
 
 Threshold: out-of-fold probabilities of :data:`FOLDS`-fold cross-validation (folds stratified by source); the
 lowest threshold on a grid of :data:`STEP` at which the held-out folds hold at most :data:`MAX_FALSE_HOLD` of the
-motion texts of *every* source (:data:`MAX_FALSE_HOLD_SITUATION` of the situation-only ones, :func:`max_false_hold`) (the contrast texts and each corpus file apart, so that the templated corpus
-cannot hide false holds on the situations). The detector shipped is then trained on all the rows. Deterministic:
+motion texts of *every* source (the contrast texts and each corpus file apart, so that the templated corpus
+cannot hide false holds on the situations; :data:`MAX_FALSE_HOLD_SITUATION` of the blind situation-only texts,
+:func:`max_false_hold`). The detector shipped is then trained on all the rows. Deterministic:
 the same data, head and code give the same file (``--check``); the file records the data's digest and the head's.
 """
 
@@ -56,6 +57,11 @@ MAX_FALSE_HOLD = 0.01  # at most this share of each source's motion texts held o
 # still, #34), while a text that names or chooses a motion held by mistake is a plain refusal to obey.
 MAX_FALSE_HOLD_SITUATION = 0.05
 SITUATION_SOURCES = ("blind situation",)  # the sources that bound applies to (s3's situation-only training texts)
+STEP = 0.0025  # the threshold grid
+# Source names of the blind writers' texts: one source per kind, every writer's together (the false-hold bound is
+# per source, and one writer's 192 contrast texts would make it "at most one text").
+CONTRAST = "blind contrast"
+NO_MOTION = "blind no motion"
 
 
 def max_false_hold(source: str) -> float:
@@ -64,11 +70,12 @@ def max_false_hold(source: str) -> float:
     return MAX_FALSE_HOLD_SITUATION if source in SITUATION_SOURCES else MAX_FALSE_HOLD
 
 
-STEP = 0.0025  # the threshold grid
-# Source names of the blind writers' texts: one source per kind, every writer's together (the false-hold bound is
-# per source, and one writer's 192 contrast texts would make it "at most one text").
-CONTRAST = "blind contrast"
-NO_MOTION = "blind no motion"
+def blind_source(row: dict) -> str:
+    """The source of a blind writer's training row: :data:`NO_MOTION`, :data:`CONTRAST`, or ``"blind <style>"``
+    for the other motion styles (s3's situation-only and mixed texts)."""
+    if row["intent"] == "none":
+        return NO_MOTION
+    return CONTRAST if row["style"] == "contrast" else f"blind {row['style']}"
 
 
 def read_jsonl(path) -> list[dict]:
@@ -83,11 +90,7 @@ def training_rows(blind=None, train_dir=TRAIN_DIR) -> list[dict]:
         {
             "text": r["text"],
             "label": int(r["intent"] == "none"),
-            "source": NO_MOTION
-            if r["intent"] == "none"
-            else CONTRAST
-            if r["style"] == "contrast"
-            else f"blind {r['style']}",
+            "source": blind_source(r),
         }
         for path in blind
         for r in read_jsonl(path)

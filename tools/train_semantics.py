@@ -531,8 +531,7 @@ def cached_finetune(name, rows, row_weight, reasons, teacher=None):
         h.update((ROOT / "jgrounding" / "semantics" / code).read_bytes())
     h.update((inspect.getsource(finetune) + inspect.getsource(distill)).encode())
     if teacher is not None:
-        for leaf in jax.tree.leaves(teacher):
-            h.update(np.asarray(leaf, np.float32).tobytes())
+        _hash_arrays(h, teacher)
     path = CACHE / f"finetune-{name}-{h.hexdigest()[:16]}.npz"
     if path.exists():
         print(f"  {name}: trained before, read from {path.relative_to(ROOT)}", flush=True)
@@ -555,6 +554,12 @@ def cached_finetune(name, rows, row_weight, reasons, teacher=None):
     return params, deltas, cfg
 
 
+def _hash_arrays(h, tree) -> None:
+    """Feed every leaf of ``tree``, as float32 bytes, to the hash ``h`` (the caches' keys of a teacher)."""
+    for leaf in jax.tree.leaves(tree):
+        h.update(np.asarray(leaf, np.float32).tobytes())
+
+
 def distill_texts() -> list[str]:
     """The texts of :data:`DISTILL_EXTRA` (labels unused)."""
     return [r["text"] for path in DISTILL_EXTRA for r in read_jsonl(path)]
@@ -569,8 +574,7 @@ def cached_distill(teacher: dict, encoder_layers: tuple[int, ...], texts: list[s
     h = hashlib.sha256(json.dumps([list(encoder_layers), texts, [DISTILL_STEPS, DISTILL_BATCH, DISTILL_LR]]).encode())
     h.update(inspect.getsource(distill).encode())
     h.update((ROOT / "jgrounding" / "semantics" / "encoder.py").read_bytes())
-    for leaf in jax.tree.leaves(teacher):
-        h.update(np.asarray(leaf, np.float32).tobytes())
+    _hash_arrays(h, teacher)
     path = CACHE / f"distill-{h.hexdigest()[:16]}.npz"
     if path.exists():
         print(f"  {name}: distilled before, read from {path}", flush=True)
