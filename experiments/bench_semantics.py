@@ -1159,8 +1159,9 @@ def main(argv=None) -> int:
     ]
     lines += [
         "",
-        f"Shipped head: option `{head.meta.get('selected')}`, temperature {head.temperature:.2f} and confidence "
-        f"threshold {head.threshold:.3f} fitted on v2 dev; params {head.meta['params_digest']}.",
+        f"Shipped head: option `{head.meta.get('selected')}`, temperature {head.temperature:.2f} fitted on v2 dev, "
+        f"confidence threshold {head.threshold:.3f} on v2 dev and the blind situation hold-out "
+        f"(tools.train_semantics.calibrate_threshold); params {head.meta['params_digest']}.",
     ]
     fig = figure(curves, RESULTS / "semantics_risk_coverage.png")
     true = [len(INTENTS) if it["intent"] == "none" else INTENTS.index(it["intent"]) for it in test]
