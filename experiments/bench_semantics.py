@@ -1144,7 +1144,12 @@ def main(argv=None) -> int:
             "",
         ]
     checks = goal_rows(res, latency, first_warm)
-    lines += ["#### Goals (v2 test, the shipped head)", "", "| goal | met | measured |", "|---|---|---|"]
+    lines += [
+        f"#### Goals (v2 test, the shipped head; timings on {machine()})",
+        "",
+        "| goal | met | measured |",
+        "|---|---|---|",
+    ]
     lines += [f"| {g} | {'yes' if ok else '**no**'} | {v} |" for _, g, ok, v in checks]
     if tried := shortfalls(checks):
         lines += ["", "What was tried for each goal not met:", "", *[f"- {m}" for m in tried]]
