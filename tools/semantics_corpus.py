@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,14 @@ import numpy as np
 from jgrounding import vocabulary as voc
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 
-OUT = Path(__file__).resolve().parent.parent / "assets" / "semantics_train" / "generated.jsonl"
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "assets" / "semantics_train" / "generated.jsonl"
+# The dev and test splits: a generated line that happens to be one of their texts (short commands such as "Come
+# here.") is dropped, so that no training text is one the project evaluates on
+# (tests/semantics/test_training_data.py). Only their texts are compared; nothing else is read from them.
+EVAL_SPLITS = tuple(
+    ROOT / "assets" / d / f"{s}.jsonl" for d in ("semantics_eval", "semantics_eval_v2") for s in ("dev", "test")
+)
 SEED = 0
 PER_INTENT = 200  # generated examples per intent
 NUM_NONE = 240
@@ -717,13 +725,29 @@ def generate(seed: int = SEED) -> list[dict]:
     return rows
 
 
+def normalized(text: str) -> str:
+    """Lower case, words only: the form in which two texts count as the same."""
+    return " ".join(re.findall(r"[a-z0-9']+", text.lower()))
+
+
+def decontaminated(rows: list[dict], splits=EVAL_SPLITS) -> list[dict]:
+    """``rows`` without those whose text (:func:`normalized`) is a text of ``splits``."""
+    held = {
+        normalized(json.loads(line)["text"])
+        for path in splits
+        for line in Path(path).read_text().splitlines()
+        if line.strip()
+    }
+    return [r for r in rows if normalized(r["text"]) not in held]
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default=str(OUT))
     args = p.parse_args(argv)
     from jgrounding.io import write_atomic
 
-    rows = generate()
+    rows = decontaminated(generate())
     write_atomic(Path(args.out), "".join(json.dumps(r) + "\n" for r in rows))
     print(f"wrote {len(rows)} lines to {args.out}")
     return 0

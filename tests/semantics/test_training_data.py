@@ -1,0 +1,76 @@
+"""The blind writers' training texts (#34): well formed, and disjoint from every text the project evaluates on."""
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from experiments import bench_semantics
+from jgrounding.vocabulary import INTENSITIES, INTENTS
+from tools import train_semantics
+from tools.semantics_corpus import normalized as _norm
+
+ROOT = Path(__file__).resolve().parents[2]
+# The brief's words that a situation-only text may not use (docs/semantics_blind_brief.md, "How to write").
+MOTION_WORDS = re.compile(
+    r"\b(wave|hug|nod|shake|point|beckon|celebrate|comfort|listen|curl|coil|swing|rest|offer|greet|bow|reach|lean"
+    r"|retract|say hello|say goodbye)\b",
+    re.IGNORECASE,
+)
+KEYS = {"id", "text", "intent", "intensity", "style"}
+
+
+def _rows(path) -> list[dict]:
+    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
+def _evaluated() -> dict[str, Path]:
+    """Every file whose texts the project evaluates or selects on: the frozen benches, the v1/v2 dev and test
+    splits and the blind situation hold-out of the ship rule."""
+    files = {name: path for name, path in bench_semantics.BENCH_V3.items()}
+    files |= {f"v2 {path.stem}": path for path in sorted((ROOT / "assets" / "semantics_eval_v2").glob("*.jsonl"))}
+    files |= {f"plain {path.stem}": path for path in sorted((ROOT / "assets" / "semantics_eval").glob("*.jsonl"))}
+    files["situation dev"] = train_semantics.SITUATION_DEV
+    return files
+
+
+@pytest.mark.parametrize("path", train_semantics.BLIND_TRAIN, ids=lambda p: f"{p.parent.name}/{p.name}")
+def test_each_blind_training_file_is_well_formed(path):
+    rows = _rows(path)
+    assert rows, path
+    for r in rows:
+        assert KEYS <= set(r), r
+        assert r["intent"] in (*INTENTS, "none"), r
+        assert r["intensity"] in INTENSITIES or r["intent"] == "none", r
+    assert len({r["id"] for r in rows}) == len(rows)
+    assert len({_norm(r["text"]) for r in rows}) == len(rows)
+
+
+@pytest.mark.parametrize(
+    "path",
+    [p for p in train_semantics.BLIND_TRAIN if p.parent == train_semantics.BLIND_TRAIN_DIR],
+    ids=lambda p: p.name,
+)
+def test_the_situation_writers_files_follow_their_brief(path):
+    """s5-s9: 20 texts per intent, 5 per intensity, situation style, none naming a motion."""
+    rows = _rows(path)
+    assert {r["style"] for r in rows} == {"situation"}
+    counts = {}
+    for r in rows:
+        counts[r["intent"], r["intensity"]] = counts.get((r["intent"], r["intensity"]), 0) + 1
+    assert counts == {(i, z): 5 for i in INTENTS for z in INTENSITIES}
+    named = [r["text"] for r in rows if MOTION_WORDS.search(r["text"])]
+    assert not named, named[:5]
+
+
+def test_no_training_text_is_one_the_project_evaluates_on():
+    """The training corpora and the blind writers' training files share no text (case and punctuation aside)
+    with the frozen benches, the dev and test splits or the ship rule's situation hold-out."""
+    train = {}
+    for name, (path, _) in train_semantics.train_files().items():
+        for r in _rows(path):
+            train.setdefault(_norm(r["text"]), name)
+    for name, path in _evaluated().items():
+        shared = [(train[t], r["text"]) for r in _rows(path) if (t := _norm(r["text"])) in train]
+        assert not shared, f"{name} shares {len(shared)} texts with training: {shared[:3]}"
