@@ -5,8 +5,10 @@ texts and eight kinds of texts that call for no motion), the plainly worded ``as
 the frozen blind benches of #34, ``assets/semantics_eval_v3/bench.jsonl`` (two writers) and
 ``assets/semantics_eval_w3/bench.jsonl`` (a third writer, 2026-12-04): nine kinds of texts that call for no motion
 and contrast texts that reject one motion and choose another, ``assets/semantics_eval_s3/bench.jsonl`` (a fourth
-writer): situation-only and mixed texts, and ``assets/semantics_eval_s4/bench.jsonl`` (a fifth writer, all of it
-frozen): situation-only texts; this script is the only reader of those files. Each
+writer): situation-only and mixed texts, ``assets/semantics_eval_s4/bench.jsonl`` (a fifth writer, all of it
+frozen): situation-only texts, and two sets written after the others had been read many times,
+``assets/semantics_eval_w4/bench.jsonl`` (no motion and contrast) and ``assets/semantics_eval_s10/bench.jsonl``
+(situations, all of it frozen); this script is the only reader of those files. Each
 blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
@@ -70,12 +72,15 @@ SPLITS = {
     "plain test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
 }
 # The frozen blind benches of #34 (accuracy only, not timed): two writers' (v3) and a third writer's (w3) no-motion
-# and contrast texts, a fourth writer's (s3) situation-only and mixed texts, and a fifth writer's (s4) situations.
+# and contrast texts, a fourth writer's (s3) situation-only and mixed texts, a fifth writer's (s4) situations, and
+# two writers' sets added once the others had been read many times: w4 (no motion and contrast) and s10 (situations).
 BENCH_V3 = {
     "v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl",
     "w3 bench": ROOT / "assets" / "semantics_eval_w3" / "bench.jsonl",
     "s3 bench": ROOT / "assets" / "semantics_eval_s3" / "bench.jsonl",
     "s4 bench": ROOT / "assets" / "semantics_eval_s4" / "bench.jsonl",
+    "w4 bench": ROOT / "assets" / "semantics_eval_w4" / "bench.jsonl",
+    "s10 bench": ROOT / "assets" / "semantics_eval_s10" / "bench.jsonl",
 }
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {
