@@ -74,3 +74,17 @@ def test_no_training_text_is_one_the_project_evaluates_on():
     for name, path in _evaluated().items():
         shared = [(train[t], r["text"]) for r in _rows(path) if (t := _norm(r["text"])) in train]
         assert not shared, f"{name} shares {len(shared)} texts with training: {shared[:3]}"
+
+
+def test_the_second_reader_labelled_every_hold_out_text_and_agreement_counts_by_hand():
+    from tools import label_agreement as la
+
+    writer, second = la.read_labels(la.WRITER), la.read_labels(la.SECOND)
+    assert set(writer) == set(second) and len(second) == 256
+    assert all(i in INTENTS and z in INTENSITIES for i, z in second.values())
+    a = {"x": ("nodding", "subtle"), "y": ("greeting", "emphatic"), "z": ("resting", "moderate")}
+    b = {"x": ("nodding", "moderate"), "y": ("farewell", "emphatic"), "z": ("resting", "moderate")}
+    r = la.agreement(a, b)
+    assert (r["intent"], r["intensity_exact"], r["within_one"], r["both"]) == (2 / 3, 2 / 3, 1.0, 1 / 3)
+    with pytest.raises(ValueError, match="different ids"):
+        la.agreement(a, {"x": b["x"]})
