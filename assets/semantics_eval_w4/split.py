@@ -1,19 +1,14 @@
 """Split the w4 blind writer's texts of issue #34 once, deterministically: ``python assets/semantics_eval_w4/split.py``.
 
-The same conversion and rule as ``assets/semantics_eval_v3/split.py``, which it runs on this folder (strata: the
-class for no-motion texts, the chosen intent for contrast texts; ids sorted and shuffled with one seeded
-``random.Random``; the first 40 % of each stratum to ``bench.jsonl``, the rest to ``train.jsonl``), with this
-folder's own seed. ``bench.jsonl`` is frozen: only ``python -m experiments.bench_semantics`` reads it.
+v3's conversion and rule (``assets/semantics_eval_v3/split.py``, run here on this folder with this folder's seed):
+strata are the class for no-motion texts and the chosen intent for contrast texts, 40 % of each to the frozen
+``bench.jsonl`` (read only by ``python -m experiments.bench_semantics``), the rest to ``train.jsonl``.
 """
 
-import importlib.util
+import runpy
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SEED = 20261206
 
 if __name__ == "__main__":
-    spec = importlib.util.spec_from_file_location("v3_split", HERE.parent / "semantics_eval_v3" / "split.py")
-    v3 = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(v3)
-    v3.main(HERE, SEED)
+    runpy.run_path(str(HERE.parent / "semantics_eval_v3" / "split.py"), run_name="v3_split")["main"](HERE, 20261206)
