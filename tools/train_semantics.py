@@ -25,7 +25,7 @@ cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span cod
 "tuned" option (top encoder layers trained with the head) takes about 10 minutes on 2 cores, the "student" (its
 encoder distilled into three layers, then trained with a new head) about 20 more, each further student sharing
 that distillation about 5; all are cached (:func:`cached_finetune`, :func:`cached_distill`), so
-the default ``--options tuned,student-sit`` (what ships now) takes about 30 minutes the first time.
+the default ``--options tuned,student-sit`` (what ships now) takes about 33 minutes the first time.
 A new head makes the nearest-neighbour table (``jgrounding/assets/semantic_knn.npz``) stale: it is ignored until
 ``python -m tools.semantics_knn --write`` rebuilds it for the new head; so is the learned no-motion detector
 (``jgrounding/assets/nomotion_detector.npz``, which reads the head's sentence vectors) until
@@ -75,13 +75,14 @@ TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test 
 # (situations_blind.jsonl: the vote-only rows of assets/semantics_vote/, for a head retrained with them through
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
-# The blind writers' training splits (#34): two writers' (v3) and a third's (w3) contrast and no-motion texts, a
-# fourth's (s3) situation-only and mixed texts, and the situation-only texts of five more writers (s5-s9, written
-# for training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The benches
+# The blind writers' training splits (#34): the contrast and no-motion texts of v3 (two writers), w3 and w4, s3's
+# situation-only and mixed texts, and the situation-only texts of five more writers (s5-s9, written for
+# training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The benches
 # (bench.jsonl) stay frozen. tools.train_nomotion reads the same files.
 BLIND_TRAIN_DIR = ROOT / "assets" / "semantics_blind_train"
 BLIND_TRAIN = tuple(
-    ROOT / "assets" / d / "train.jsonl" for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3")
+    ROOT / "assets" / d / "train.jsonl"
+    for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3", "semantics_eval_w4")
 ) + tuple(BLIND_TRAIN_DIR / f"situations_{w}.jsonl" for w in ("s5", "s6", "s7", "s8", "s9"))
 BLIND_WEIGHT = 2.0
 OPTIONS = {
