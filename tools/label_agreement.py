@@ -9,15 +9,16 @@ writer. A second reader, a helper given only ``docs/semantics_second_reader_brie
 writers' brief) and the 256 texts shuffled under new ids, labelled each text again
 (``assets/semantics_dev_situations_second_reader.jsonl``). Situation-only texts imply their intensity, so how often
 two readers give the same one says how much of the intensity goal (exact >= 0.80) the labels themselves allow.
+The head's rows are optimistic: the hold-out is a dev set, read by the ship score and the threshold's fit.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from jgrounding.vocabulary import INTENSITIES
+from tools.train_semantics import read_jsonl
 
 ROOT = Path(__file__).resolve().parent.parent
 WRITER = ROOT / "assets" / "semantics_dev_situations_blind.jsonl"
@@ -26,8 +27,7 @@ SECOND = ROOT / "assets" / "semantics_dev_situations_second_reader.jsonl"
 
 def read_labels(path) -> dict[str, tuple[str, str]]:
     """``{id: (intent, intensity)}`` of a JSON Lines file."""
-    rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
-    return {r["id"]: (r["intent"], r["intensity"]) for r in rows}
+    return {r["id"]: (r["intent"], r["intensity"]) for r in read_jsonl(path)}
 
 
 def agreement(a: dict, b: dict) -> dict:
@@ -47,7 +47,7 @@ def head_labels() -> dict[str, tuple[str, str]]:
     """The shipped head's tuple for every hold-out text (``jg.ground_many``, acted on or not)."""
     import jgrounding as jg
 
-    rows = [json.loads(line) for line in WRITER.read_text().splitlines() if line.strip()]
+    rows = read_jsonl(WRITER)
     out = jg.ground_many([r["text"] for r in rows])
     return {r["id"]: (g.intent, g.intensity) for r, g in zip(rows, out)}
 

@@ -1,6 +1,5 @@
 """The blind writers' training texts (#34): well formed, and disjoint from every text the project evaluates on."""
 
-import json
 import re
 from pathlib import Path
 
@@ -9,9 +8,10 @@ import pytest
 from experiments import bench_semantics
 from jgrounding.vocabulary import INTENSITIES, INTENTS
 from tools import train_semantics
+from tools.semantics_corpus import EVAL_SPLITS
 from tools.semantics_corpus import normalized as _norm
+from tools.train_semantics import read_jsonl as _rows
 
-ROOT = Path(__file__).resolve().parents[2]
 # The brief's words that a situation-only text may not use (docs/semantics_blind_brief.md, "How to write").
 MOTION_WORDS = re.compile(
     r"\b(wave|hug|nod|shake|point|beckon|celebrate|comfort|listen|curl|coil|swing|rest|offer|greet|bow|reach|lean"
@@ -21,16 +21,11 @@ MOTION_WORDS = re.compile(
 KEYS = {"id", "text", "intent", "intensity", "style"}
 
 
-def _rows(path) -> list[dict]:
-    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
-
-
 def _evaluated() -> dict[str, Path]:
-    """Every file whose texts the project evaluates or selects on: the frozen benches, the v1/v2 dev and test
-    splits and the blind situation hold-out of the ship rule."""
-    files = {name: path for name, path in bench_semantics.BENCH_V3.items()}
-    files |= {f"v2 {path.stem}": path for path in sorted((ROOT / "assets" / "semantics_eval_v2").glob("*.jsonl"))}
-    files |= {f"plain {path.stem}": path for path in sorted((ROOT / "assets" / "semantics_eval").glob("*.jsonl"))}
+    """Every file whose texts the project evaluates or selects on: the frozen benches, the dev and test splits
+    (the ones the corpus generator keeps its lines out of) and the blind situation hold-out of the ship rule."""
+    files = dict(bench_semantics.BENCH_V3)
+    files |= {f"{path.parent.name}/{path.name}": path for path in EVAL_SPLITS}
     files["situation dev"] = train_semantics.SITUATION_DEV
     return files
 
