@@ -6,9 +6,10 @@ the frozen blind benches of #34, ``assets/semantics_eval_v3/bench.jsonl`` (two w
 ``assets/semantics_eval_w3/bench.jsonl`` (a third writer, 2026-12-04): nine kinds of texts that call for no motion
 and contrast texts that reject one motion and choose another, ``assets/semantics_eval_s3/bench.jsonl`` (a fourth
 writer): situation-only and mixed texts, ``assets/semantics_eval_s4/bench.jsonl`` (a fifth writer, all of it
-frozen): situation-only texts, and two sets written after the others had been read many times,
-``assets/semantics_eval_w4/bench.jsonl`` (no motion and contrast) and ``assets/semantics_eval_s10/bench.jsonl``
-(situations, all of it frozen); this script is the only reader of those files. Each
+frozen): situation-only texts, and sets written after the others had been read many times,
+``assets/semantics_eval_w4/bench.jsonl`` and ``assets/semantics_eval_w5/bench.jsonl`` (no motion and contrast; w5
+all frozen), ``assets/semantics_eval_s10/bench.jsonl`` and ``assets/semantics_eval_s11/bench.jsonl`` (situations,
+all frozen); this script is the only reader of those files. Each
 blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
@@ -73,7 +74,8 @@ SPLITS = {
 }
 # The frozen blind benches of #34 (accuracy only, not timed): two writers' (v3) and a third writer's (w3) no-motion
 # and contrast texts, a fourth writer's (s3) situation-only and mixed texts, a fifth writer's (s4) situations, and
-# two writers' sets added once the others had been read many times: w4 (no motion and contrast) and s10 (situations).
+# writers' sets added once the others had been read many times: w4 (no motion and contrast) and s10 (situations), then
+# w5 (no motion and contrast) and s11 (situations), both all frozen, in the sixth session.
 BENCH_V3 = {
     "v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl",
     "w3 bench": ROOT / "assets" / "semantics_eval_w3" / "bench.jsonl",
@@ -81,6 +83,8 @@ BENCH_V3 = {
     "s4 bench": ROOT / "assets" / "semantics_eval_s4" / "bench.jsonl",
     "w4 bench": ROOT / "assets" / "semantics_eval_w4" / "bench.jsonl",
     "s10 bench": ROOT / "assets" / "semantics_eval_s10" / "bench.jsonl",
+    "w5 bench": ROOT / "assets" / "semantics_eval_w5" / "bench.jsonl",
+    "s11 bench": ROOT / "assets" / "semantics_eval_s11" / "bench.jsonl",
 }
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {

@@ -1,5 +1,6 @@
 """Write the fifth blind writer's situation-only texts of issue #34 as the frozen bench, once:
-``python assets/semantics_eval_s4/split.py``.
+``python assets/semantics_eval_s4/split.py`` (``... split.py <folder>``: the same for another folder's
+``situation_raw.jsonl``, as s11's).
 
 Reads ``situation_raw.jsonl`` (already in the evaluation format ``{"id", "text", "intent", "intensity", "style"}``)
 and writes every text, in file order, to ``bench.jsonl``: this set has no training split. It was written after the
@@ -21,5 +22,7 @@ def main(here=HERE):
     print(f"{len(rows)} texts: all to bench.jsonl (frozen)")
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # another folder's raw file: python assets/semantics_eval_s4/split.py <folder>
+    import sys
+
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else HERE)

@@ -37,8 +37,9 @@ def rows(here=HERE):
     return out
 
 
-def main(here=HERE, seed=20261203):
-    """Split ``here``'s raw files (another folder's too: assets/semantics_eval_w3/split.py) with ``seed``."""
+def main(here=HERE, seed=20261203, bench_share=BENCH_SHARE):
+    """Split ``here``'s raw files (another folder's too: assets/semantics_eval_w3/split.py) with ``seed``;
+    ``bench_share``: the share of each stratum frozen (1.0: all of it, written as ``bench.jsonl`` alone)."""
     items = rows(here)
     strata = {}
     for r in items:
@@ -48,8 +49,10 @@ def main(here=HERE, seed=20261203):
     for key in sorted(strata):
         ids = sorted(strata[key])
         rng.shuffle(ids)
-        bench.update(ids[: round(BENCH_SHARE * len(ids))])
+        bench.update(ids[: round(bench_share * len(ids))])
     for name, keep in (("all", lambda r: True), ("bench", lambda r: r["id"] in bench), ("train", lambda r: r["id"] not in bench)):
+        if name != "bench" and len(bench) == len(items):  # all frozen: bench.jsonl alone
+            continue
         text = "".join(json.dumps(r, ensure_ascii=False) + "\n" for r in items if keep(r))
         (here / f"{name}.jsonl").write_text(text)
     print(f"{len(items)} texts: {len(bench)} bench (frozen), {len(items) - len(bench)} train")
