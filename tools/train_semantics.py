@@ -25,7 +25,7 @@ cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span cod
 "tuned" option (top encoder layers trained with the head) takes about 10 minutes on 2 cores, the "student" (its
 encoder distilled into three layers, then trained with a new head) about 20 more, each further student sharing
 that distillation about 5; all are cached (:func:`cached_finetune`, :func:`cached_distill`), so
-the default ``--options tuned,student-sit`` (what ships now) takes about 33 minutes the first time.
+the default ``--options tuned,student-sit,student-sit-z`` (what ships now) takes about 50 minutes the first time.
 A new head makes the nearest-neighbour table (``jgrounding/assets/semantic_knn.npz``) stale: it is ignored until
 ``python -m tools.semantics_knn --write`` rebuilds it for the new head; so is the learned no-motion detector
 (``jgrounding/assets/nomotion_detector.npz``, which reads the head's sentence vectors) until
@@ -117,7 +117,7 @@ OPTIONS = {
 }
 # The options a default run compares: those of the run that made the shipped head (the others stay available, and
 # results/semantics_dev_options.json keeps only the options of the last run).
-DEFAULT_OPTIONS = ("tuned", "student-sit")
+DEFAULT_OPTIONS = ("tuned", "student-sit", "student-sit-z")
 DISTILL_STEPS = 1500  # AdamW steps of DISTILL_BATCH texts (cosine schedule, warm-up 5 %); about 10 min on 2 cores
 DISTILL_BATCH = 32
 DISTILL_LR = 2e-4

@@ -22,9 +22,13 @@ KEYS = {"id", "text", "intent", "intensity", "style"}
 
 
 def _evaluated() -> dict[str, Path]:
-    """Every file whose texts the project evaluates or selects on: the frozen benches, the dev and test splits
-    (the ones the corpus generator keeps its lines out of) and the blind situation hold-out of the ship rule."""
+    """Every file whose texts the project evaluates or selects on: the frozen benches (those the bench reads and any
+    parked for a later change's judgement), the dev and test splits (the ones the corpus generator keeps its lines
+    out of) and the blind situation hold-out of the ship rule."""
     files = dict(bench_semantics.BENCH_V3)
+    files |= {
+        path.parent.name: path for path in sorted(train_semantics.ROOT.glob("assets/semantics_eval_*/bench.jsonl"))
+    }
     files |= {f"{path.parent.name}/{path.name}": path for path in EVAL_SPLITS}
     files["situation dev"] = train_semantics.SITUATION_DEV
     return files
