@@ -134,3 +134,22 @@ def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
     got = np.asarray(sh.knn_blend(knn, p, q, extras, 5))
     blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
     np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
+
+
+def test_a_tighter_confident_wrong_budget_never_lowers_the_threshold_nor_adds_wrong_motions():
+    rng = np.random.default_rng(0)
+    rows = [{"intent": INTENTS[i % 16], "intensity": "moderate", "style": "situation"} for i in range(200)]
+    rows += [{"intent": "none", "intensity": None, "style": "none"} for _ in range(40)]
+    intent, _ = train_semantics.labels(rows)
+    logits = rng.normal(0, 1, (len(rows), sh.NUM_CLASSES))
+    logits[np.arange(len(rows)), intent] += rng.uniform(0, 4, len(rows))  # mostly right, some confidently wrong
+    pm = np.exp(logits) / np.exp(logits).sum(1, keepdims=True)
+    pz = np.full((len(rows), 4), 0.25)
+    r = semantics_knn.evaluate(pm, pz, rows, pm, pz, rows, False, budgets=semantics_knn.BUDGETS)
+    b = [r["budgets"][t] for t in semantics_knn.BUDGETS]  # loosest first
+    assert r["budgets"][train_semantics.TARGET_WRONG]["threshold"] == r["threshold"]
+    assert [x["threshold"] for x in b] == sorted(x["threshold"] for x in b)
+    assert [x["dev"]["confident_wrong"] for x in b] == sorted((x["dev"]["confident_wrong"] for x in b), reverse=True)
+    for target, x in r["budgets"].items():
+        assert x["dev"]["confident_wrong"] <= target or x["threshold"] == 0.975
+    assert "budget 0.010: thr" in semantics_knn.budget_line(r)
