@@ -106,8 +106,8 @@ OPTIONS = {
     ),
     # "student-sit" whose intensity scorer has a hidden layer (64 GELU units) instead of a linear score: a
     # situation's intensity is how strong the situation is for the behaviour it calls for, which a linear score of
-    # the pooled vectors reads less well (situation intensity exact was 0.68-0.75 on the frozen benches against
-    # 0.80; a second human reader agrees with the writer on 0.844).
+    # the pooled vectors may read less well (situation intensity exact was 0.68-0.75 on the frozen benches against
+    # 0.80; a second reader, a language model given only the vocabulary, agrees with the writer on 0.844).
     "student-sit-z": dict(
         inputs="tuned", hidden=128, tuned_layers=3, epochs=8, encoder_layers=(1, 3, 5), distill_extra=True, z_hidden=64
     ),
