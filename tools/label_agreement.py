@@ -15,13 +15,11 @@ The head's rows are optimistic: the hold-out is a dev set, read by the ship scor
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from jgrounding.vocabulary import INTENSITIES
-from tools.train_semantics import read_jsonl
+from tools.train_semantics import ROOT, SITUATION_DEV, read_jsonl
 
-ROOT = Path(__file__).resolve().parent.parent
-WRITER = ROOT / "assets" / "semantics_dev_situations_blind.jsonl"
+WRITER = SITUATION_DEV  # the hold-out as its writer labelled it
 SECOND = ROOT / "assets" / "semantics_dev_situations_second_reader.jsonl"
 
 

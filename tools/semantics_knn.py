@@ -176,9 +176,9 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
     )
 
 
-# Confident-wrong budgets whose thresholds the chosen variant's line reports beside the shipped one (ts.TARGET_WRONG
-# is 2 % on dev; #34's goal on the frozen benches is 1 %).
-BUDGETS = (0.02, 0.015, 0.01)
+# Confident-wrong budgets whose thresholds the chosen variant's line reports: the shipped one (ts.TARGET_WRONG, 2 % on
+# dev) first, then tighter ones (#34's goal on the frozen benches is 1 %).
+BUDGETS = (ts.TARGET_WRONG, 0.015, 0.01)
 
 
 def budget_line(v: dict) -> str:

@@ -1,6 +1,6 @@
 """Write the fifth blind writer's situation-only texts of issue #34 as the frozen bench, once:
 ``python assets/semantics_eval_s4/split.py`` (``... split.py <folder>``: the same for another folder's
-``situation_raw.jsonl``, as s11's).
+``situation_raw.jsonl``, as s10's, s11's and s14's).
 
 Reads ``situation_raw.jsonl`` (already in the evaluation format ``{"id", "text", "intent", "intensity", "style"}``)
 and writes every text, in file order, to ``bench.jsonl``: this set has no training split. It was written after the
