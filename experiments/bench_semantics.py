@@ -9,7 +9,8 @@ writer): situation-only and mixed texts, ``assets/semantics_eval_s4/bench.jsonl`
 frozen): situation-only texts, and sets written after the others had been read many times,
 ``assets/semantics_eval_w4/bench.jsonl`` and ``assets/semantics_eval_w5/bench.jsonl`` (no motion and contrast; w5
 all frozen), ``assets/semantics_eval_s10/bench.jsonl`` and ``assets/semantics_eval_s11/bench.jsonl`` (situations,
-all frozen); this script is the only reader of those files. Each
+all frozen), and two sets parked unread until the seventh session's change, ``assets/semantics_eval_s14/bench.jsonl``
+(situations) and ``assets/semantics_eval_w6/bench.jsonl`` (no motion and contrast), both all frozen; this script is the only reader of those files. Each
 blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
@@ -85,6 +86,8 @@ BENCH_V3 = {
     "s10 bench": ROOT / "assets" / "semantics_eval_s10" / "bench.jsonl",
     "w5 bench": ROOT / "assets" / "semantics_eval_w5" / "bench.jsonl",
     "s11 bench": ROOT / "assets" / "semantics_eval_s11" / "bench.jsonl",
+    "s14 bench": ROOT / "assets" / "semantics_eval_s14" / "bench.jsonl",
+    "w6 bench": ROOT / "assets" / "semantics_eval_w6" / "bench.jsonl",
 }
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {
