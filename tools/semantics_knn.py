@@ -1,7 +1,7 @@
 """A nearest-neighbour vote over the training texts, blended with the shipped tuned head (#24, dev only).
 
     python -m tools.semantics_knn          # compare the variants: results/semantics_dev_knn.json
-    python -m tools.semantics_knn --write  # the chosen variant (CHOSEN): jgrounding/assets/semantic_knn.npz
+    python -m tools.semantics_knn --write  # the best variant of CHOICES: jgrounding/assets/semantic_knn.npz
 
 For every text the shipped head (``jgrounding/assets/semantic_head.npz``) already computes its tuned encoder's four pooled
 vectors and its hidden layer. Here the training texts (``assets/semantics_train/*.jsonl``) are put through the
@@ -10,7 +10,8 @@ same path once, and a dev text's intent distribution becomes
     p = (1 - a) p_head + a p_knn,    p_knn = the (similarity-weighted) intent vote of its k nearest training texts
 
 (cosine similarity in one of the head's representations; the vote is over the 16 intents and "none"). The
-intensity stays the head's. For each variant (representation, which training rows form the table, when the vote
+intensity stays the head's, or, in the variants with an intensity vote (:data:`CHOICES`), the same neighbours'
+intensities are blended into it with weight b. For each variant (representation, which training rows form the table, when the vote
 applies, k, a) the confidence threshold is refitted on v2 dev as :mod:`tools.train_semantics` does (optionally a
 temperature on the blend first), and the variant is scored with its functions, and on the two situation hold-outs
 (:data:`HOLDOUTS`) at that threshold. The table may hold, beyond the training texts, rows the head was never trained
@@ -55,7 +56,14 @@ POOLED = features.POOLED_FEATURES  # the extras follow the tuned encoder's pooli
 # this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
 # (A head retrained with a second situations corpus and a vote for every text, chosen on the situation hold-out,
 # did worse on the frozen v2 test and was not kept: docs/how_it_works.md.)
-CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5)
+# The seventh session added an intensity vote (b: its weight; 0: none) from the same neighbours, and a table that
+# also holds the blind writers' training situations (ts.BLIND_TRAIN); both are chosen on v2 dev as the rest
+# (:data:`CHOICES`).
+CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5, b=0.0)
+# The variants of the chosen family that `--write` (and `--chosen-only`) scores through the shipped blend: each
+# table, with and without the intensity vote. The one written is the highest v2 dev score among those that pass
+# the ship rule (:func:`qualifies`), ties to the earlier.
+CHOICES = tuple(dict(CHOSEN, table=table, b=b) for table in ("no-generated", "no-generated+blind") for b in (0.0, 0.5))
 
 
 def head_features(head, texts: list[str], cache_dir=ts.CACHE) -> np.ndarray:
@@ -215,14 +223,20 @@ def qualifies(v: dict, base: dict) -> bool:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--report", default=str(REPORT))
-    p.add_argument("--write", action="store_true", help=f"write the chosen variant {CHOSEN} to {sh.KNN_ASSET.name}")
+    p.add_argument(
+        "--write",
+        action="store_true",
+        help=f"write the best of the chosen family's variants (CHOICES) that passes the ship rule to {sh.KNN_ASSET.name}",
+    )
     p.add_argument(
         "--head",
         default=None,
         help="compare the variants for another head file (e.g. one retrained by tools.train_semantics --out); "
         "the shipped table is written only for the shipped head",
     )
-    p.add_argument("--chosen-only", action="store_true", help=f"score only the chosen variant {CHOSEN}, write nothing")
+    p.add_argument(
+        "--chosen-only", action="store_true", help="score only the chosen family's variants (CHOICES), write nothing"
+    )
     args = p.parse_args(argv)
     if args.head and args.write:
         raise SystemExit("--write builds the shipped head's table; drop --head (or use --chosen-only)")
@@ -239,10 +253,11 @@ def main(argv=None) -> int:
     x_train = head_features(head, [r["text"] for r in rows])
     x = {n: head_features(head, [r["text"] for r in set_rows]) for n, set_rows in sets.items()}
     p_head = {n: [np.asarray(a, np.float64) for a in sh.predict(head.params, x[n], head.temperature)] for n in sets}
-    pz = {n: p[1] for n, p in p_head.items()}  # the intensity stays the head's
+    pz_head = {n: p[1] for n, p in p_head.items()}  # the intensity stays the head's (unless an intensity vote)
 
-    def scored(pm: dict, refit: bool, budgets=()) -> dict:
-        """:func:`evaluate` of intent probabilities for every set (the head's intensities)."""
+    def scored(pm: dict, refit: bool, budgets=(), pz: dict | None = None) -> dict:
+        """:func:`evaluate` of intent probabilities for every set, with the head's intensities or ``pz``'s."""
+        pz = pz or pz_head
         held = {n: (pm[n], pz[n], sets[n]) for n in holds}
         return evaluate(
             pm["dev"],
@@ -256,7 +271,7 @@ def main(argv=None) -> int:
             budgets=budgets,
         )
 
-    train_intent, _ = ts.labels(rows)
+    train_intent, train_intensity = ts.labels(rows)
     style = np.array([r.get("style") or "" for r in rows])
     dev, plain = sets["dev"], sets["plain"]
     base = scored({n: p[0] for n, p in p_head.items()}, False)
@@ -267,14 +282,16 @@ def main(argv=None) -> int:
         f"plain {base['plain_intent']:.3f} {_holdout_line(base)}",
         flush=True,
     )
-    tables = {
-        "all": np.ones(len(rows), bool),
-        "no-generated": files != "generated.jsonl",
-        "situations": style == "situation",
-        "situations+none": (style == "situation") | (train_intent == sh.NONE),
+    blind = np.char.startswith(files.astype(str), "blind/")
+    tables = {  # every table but "no-generated+blind" leaves the blind writers' splits out, as before they voted
+        "all": ~blind,
+        "no-generated": (files != "generated.jsonl") & ~blind,
+        "no-generated+blind": files != "generated.jsonl",
+        "situations": (style == "situation") & ~blind,
+        "situations+none": ((style == "situation") | (train_intent == sh.NONE)) & ~blind,
     }
     if args.write or args.chosen_only:
-        return write(head, x_train, train_intent, tables, x, p_head, scored, base, dry=not args.write)
+        return write(head, x_train, train_intent, train_intensity, tables, x, p_head, scored, base, dry=not args.write)
     gates = {
         "always": {n: np.ones(len(sets[n]), bool) for n in sets},
         "no motion words": {n: no_motion_words(x[n]) for n in sets},
@@ -347,23 +364,25 @@ def _holdout_line(v: dict) -> str:
 
 
 def table_rows() -> tuple[list[dict], np.ndarray]:
-    """The rows the vote's table may hold: the training corpora (``assets/semantics_train/``; not the blind writers'
-    splits, which hold no situations) and then the vote-only rows (:data:`VOTE_ROWS`), with each row's file name
-    ``(N,)``."""
+    """The rows the vote's table may hold: the training corpora (``assets/semantics_train/``), the vote-only rows
+    (:data:`VOTE_ROWS`) and then the blind writers' training splits (:data:`tools.train_semantics.BLIND_TRAIN`),
+    with each row's file name ``(N,)`` (a blind split's as ``blind/<folder>/<name>``)."""
     rows, files = [], []
-    for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *sorted(VOTE_ROWS.glob("*.jsonl"))]:
+    named = [(path, path.name) for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *sorted(VOTE_ROWS.glob("*.jsonl"))]]
+    named += [(Path(path), f"blind/{Path(path).parent.name}/{Path(path).name}") for path in ts.BLIND_TRAIN]
+    for path, name in named:
         part = ts.read_jsonl(path)
         rows += part
-        files += [path.name] * len(part)
+        files += [name] * len(part)
     return rows, np.array(files)
 
 
-def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: bool = False) -> int:
-    """Write :data:`CHOSEN` as ``jgrounding/assets/semantic_knn.npz``: its dev metrics are recomputed through the shipped
-    blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and must pass the ship rule. Every other
-    table is scored the same way first, for the record. ``x``, ``p_head``: each evaluation set's head inputs and
-    the head's probabilities, by name; ``scored``: their evaluation (main's). ``dry``: print the scores, write
-    nothing."""
+def write(head, x_train, train_intent, train_intensity, tables, x, p_head, scored, base, dry: bool = False) -> int:
+    """Score each of :data:`CHOICES` (the chosen family's tables, with and without the intensity vote) through the
+    shipped blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and write the highest v2 dev score
+    among those that pass the ship rule as ``jgrounding/assets/semantic_knn.npz``. Every other table is scored
+    the same way first, for the record. ``x``, ``p_head``: each evaluation set's head inputs and the head's
+    probabilities, by name; ``scored``: their evaluation (main's). ``dry``: print the scores, write nothing."""
     if CHOSEN["representation"] not in sh.KNN_POOLS:
         raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
     pool = sh.KNN_POOLS.index(CHOSEN["representation"])
@@ -372,39 +391,50 @@ def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: boo
         gate = np.zeros_like(gate)
     refit = CHOSEN.get("refit_temperature", False)
 
-    def blended(mask):
+    def blended(mask, b: float = 0.0):
         table = representation(CHOSEN["representation"], head.params, x_train[mask]).astype(np.float16)
-        labels = train_intent[mask]
+        labels, intensities = train_intent[mask], train_intensity[mask]
         knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
         knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
+        if b > 0:  # as sh.load_knn builds it: unlabelled rows vote for no intensity
+            knn |= {"onehot_z": np.eye(5, dtype=np.float32)[intensities][:, :4], "b": np.float32(b)}
 
-        def vote(xs, pm):
+        def vote(xs, p):
             if not len(xs):
-                return pm
+                return p
             q = xs[:, pool * POOL : (pool + 1) * POOL]
-            return np.asarray(sh.knn_blend(knn, pm.astype(np.float32), q, xs[:, POOLED:], CHOSEN["k"]), np.float64)
+            pm, pz = sh.knn_blend(knn, p[0].astype(np.float32), p[1].astype(np.float32), q, xs[:, POOLED:], CHOSEN["k"])
+            return np.asarray(pm, np.float64), np.asarray(pz, np.float64)
 
-        return table, labels, scored({n: vote(x[n], p[0]) for n, p in p_head.items()}, refit, BUDGETS)
+        out = {n: vote(x[n], p) for n, p in p_head.items()}
+        r = scored({n: o[0] for n, o in out.items()}, refit, BUDGETS, pz={n: o[1] for n, o in out.items()})
+        return table, labels, intensities, r
 
     for name, mask in tables.items():
-        if name != CHOSEN["table"]:
-            _, labels, r = blended(mask)
+        if name not in {c["table"] for c in CHOICES}:
+            _, labels, _, r = blended(mask)
             print(
                 f"  table {name} ({len(labels)} rows): score {r['score']:.3f} situation {r['situation']:.3f}"
                 f" thr {r['threshold']:.3f} {_holdout_line(r)}"
             )
-    table, labels, r = blended(tables[CHOSEN["table"]])
-    ok = qualifies(r, base)
-    d = r["dev"]
-    print(
-        f"chosen {CHOSEN} ({len(labels)} rows): score {r['score']:.3f} situation {r['situation']:.3f}"
-        f" thr {r['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in d.items()})}"
-        f" plain {r['plain_intent']:.3f} {_holdout_line(r)}; ship rule: {ok}"
-    )
-    print(f"  confident-wrong budgets (ts.TARGET_WRONG {ts.TARGET_WRONG}): {budget_line(r)}")
+    scored_choices = []
+    for choice in CHOICES:
+        table, labels, intensities, r = blended(tables[choice["table"]], choice["b"])
+        ok = qualifies(r, base)
+        d = r["dev"]
+        print(
+            f"{choice} ({len(labels)} rows): score {r['score']:.3f} situation {r['situation']:.3f}"
+            f" thr {r['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in d.items()})}"
+            f" plain {r['plain_intent']:.3f} {_holdout_line(r)}; ship rule: {ok}"
+        )
+        print(f"  confident-wrong budgets (ts.TARGET_WRONG {ts.TARGET_WRONG}): {budget_line(r)}")
+        scored_choices.append((choice, table, labels, intensities, r, ok))
+    passing = [c for c in scored_choices if c[-1]]
     if dry:
+        if passing:
+            print(f"would write {max(passing, key=lambda c: c[4]['score'])[0]}")
         return 0
-    if not ok:
+    if not passing:
         stale = ""
         if sh.KNN_ASSET.exists():  # a table made for an earlier head: grounding ignores it; remove it
             with np.load(sh.KNN_ASSET) as f:
@@ -412,27 +442,32 @@ def write(head, x_train, train_intent, tables, x, p_head, scored, base, dry: boo
             if made_for != head.meta["params_digest"]:
                 sh.KNN_ASSET.unlink()
                 stale = f"; removed {sh.KNN_ASSET.name}, made for another head ({made_for})"
-        raise SystemExit(f"the chosen variant does not pass the ship rule on dev: no vote ships{stale}")
+        raise SystemExit(f"no variant of {CHOICES} passes the ship rule on dev: no vote ships{stale}")
+    best = max(r["score"] for *_, r, _ in passing)
+    choice, table, labels, intensities, r, _ = next(c for c in passing if c[4]["score"] >= best - 1e-9)
     meta = dict(
-        k=CHOSEN["k"],
-        tau=CHOSEN["tau"],
-        a=CHOSEN["a"],
+        k=choice["k"],
+        tau=choice["tau"],
+        a=choice["a"],
+        b=choice["b"],
         head_digest=head.meta["params_digest"],
-        representation=CHOSEN["representation"],
-        gate=CHOSEN["gate"],
+        representation=choice["representation"],
+        gate=choice["gate"],
         temperature=float(r["blend_temperature"]),  # 1: none (sh.knn_blend applies any other)
         threshold=r["threshold"],
-        variant=CHOSEN,
+        variant=choice,
         rows=int(len(labels)),
-        dev=d,
+        dev=r["dev"],
         dev_situation=r["situation"],
         dev_plain_intent=r["plain_intent"],
         holdout=r["holdout"],
         dev_score=r["score"],
         head_alone={k: base[k] for k in ("score", "situation", "threshold", "dev", "plain_intent")},
     )
-    path = sh.save_knn(sh.KNN_ASSET, table, labels, gate, meta)
-    print(f"wrote {path} ({len(labels)} rows, digest {sh.knn_digest(table, labels)})")
+    path = sh.save_knn(sh.KNN_ASSET, table, labels, gate, meta, intensities if choice["b"] > 0 else None)
+    print(
+        f"wrote {path}: {choice} ({len(labels)} rows, digest {sh.knn_digest(table, labels, intensities if choice['b'] > 0 else None)})"
+    )
     return 0
 
 

@@ -76,14 +76,17 @@ TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test 
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
 # The blind writers' training splits (#34): the contrast and no-motion texts of v3 (two writers), w3 and w4, s3's
-# situation-only and mixed texts, and the situation-only texts of seven more writers (s5-s9, s12, s13, written for
-# training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The benches
-# (bench.jsonl) stay frozen. tools.train_nomotion reads the same files.
+# situation-only and mixed texts, and the situation-only texts of eleven more writers (s5-s9, s12, s13, s15-s18,
+# written for training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The
+# benches (bench.jsonl) stay frozen. tools.train_nomotion reads the same files.
 BLIND_TRAIN_DIR = ROOT / "assets" / "semantics_blind_train"
 BLIND_TRAIN = tuple(
     ROOT / "assets" / d / "train.jsonl"
     for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3", "semantics_eval_w4")
-) + tuple(BLIND_TRAIN_DIR / f"situations_{w}.jsonl" for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13"))
+) + tuple(
+    BLIND_TRAIN_DIR / f"situations_{w}.jsonl"
+    for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13", "s15", "s16", "s17", "s18")
+)
 BLIND_WEIGHT = 2.0
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),

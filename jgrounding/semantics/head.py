@@ -239,23 +239,29 @@ KNN_POOLS = ("sentence", "chosen")  # the pooled vectors a nearest-neighbour tab
 KNN_GATE_FLAGS = ("has_rejected", "log_line", "system_prefix", "not_understood", "background")
 
 
-def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
-    """The nearest-neighbour vote over the training texts, blended into the head's intent probabilities.
+def knn_blend(knn: dict, p_intent, p_intensity, sentence, extras, k: int):
+    """The nearest-neighbour vote over the training texts, blended into the head's intent (and intensity)
+    probabilities.
 
     ``p = (1 - a) p_head + a p_knn`` for the texts the table's gate lets through (a gate over the extras' columns:
     those must be zero; the shipped table's: the chosen part names no action, and no rejected part, log, system,
     not-understood or background cue; an empty gate lets every text vote); other texts keep ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest
     to the query (the text's tuned pooled vector the table was made of, :attr:`Head.knn_pool`), cosine, weighted by
-    exp((sim - best sim) / tau). With a ``temperature`` in the table, p^(1/T) renormalised, for every text.
+    exp((sim - best sim) / tau). With a ``temperature`` in the table, p^(1/T) renormalised, for every text. With an
+    intensity vote in the table (``onehot_z`` and its weight ``b``), the same neighbours' intensities vote too (those
+    labelled with one; a text none of whose neighbours is keeps the head's): ``p_z = (1 - b) p_z_head + b p_z_knn``
+    for the texts the gate lets through.
 
     Args: knn (:func:`load_knn`: ``table`` ``(N, 384)`` unit vectors, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``
     0/1 over the extras' columns that must be zero (all zero: every text votes), ``tau``, ``a``, and optionally
-    ``temperature``); p_intent ``(B, 17)``; sentence: the query ``(B, 384)``, unit vectors; extras ``(B, E)``.
-    Returns ``(B, 17)``."""
+    ``temperature``, and ``onehot_z`` ``(N, 4)`` (zero rows: no intensity label) with ``b``); p_intent ``(B, 17)``;
+    p_intensity ``(B, 4)``; sentence: the query ``(B, 384)``, unit vectors; extras ``(B, E)``.
+    Returns (p_intent ``(B, 17)``, p_intensity ``(B, 4)``)."""
     knn = jax.tree.map(jnp.asarray, knn)  # numpy tables too (tools.semantics_knn, tests): indexed by traced indices
     situation = jnp.sum(jnp.abs(extras) * knn["gate"], 1) == 0
 
     def blend(p):
+        p_m, p_z = p
         sim = sentence @ knn["table"].T
         best, idx = jax.lax.top_k(sim, k)
         # An identity that keeps XLA's CPU top-k kernel: with the slice below fused onto its output the vote
@@ -263,14 +269,20 @@ def knn_blend(knn: dict, p_intent, sentence, extras, k: int):
         best = jax.lax.optimization_barrier(best)
         w = jnp.exp((best - best[:, :1]) / knn["tau"])
         vote = jnp.einsum("bk,bkc->bc", w, knn["onehot"][idx]) / jnp.sum(w, 1, keepdims=True)
-        return jnp.where(situation[:, None], (1.0 - knn["a"]) * p + knn["a"] * vote, p)
+        p_m = jnp.where(situation[:, None], (1.0 - knn["a"]) * p_m + knn["a"] * vote, p_m)
+        if "onehot_z" in knn:
+            vote_z = jnp.einsum("bk,bkc->bc", w, knn["onehot_z"][idx])
+            mass = jnp.sum(vote_z, 1, keepdims=True)
+            mixed = (1.0 - knn["b"]) * p_z + knn["b"] * vote_z / jnp.maximum(mass, 1e-12)
+            p_z = jnp.where(situation[:, None] & (mass > 0), mixed, p_z)
+        return p_m, p_z
 
     # With a gate, a batch none of whose texts passes it skips the table.
-    p = jax.lax.cond(jnp.any(situation), blend, lambda p: p, p_intent)
+    p, p_z = jax.lax.cond(jnp.any(situation), blend, lambda p: p, (p_intent, p_intensity))
     if "temperature" in knn:  # a temperature fitted on dev to the blended distribution (every text's)
         q = jnp.exp(jnp.log(jnp.clip(p, 1e-12, 1.0)) / knn["temperature"])
         p = q / jnp.sum(q, 1, keepdims=True)
-    return p
+    return p, p_z
 
 
 @functools.partial(jax.jit, static_argnames=("knn_k", "knn_pool"))
@@ -280,7 +292,7 @@ def predict_tuned(
     """The tuned head's whole grounding of a batch in one compiled program: the encoder (with its tuned top
     layers) pooled four ways (:func:`jgrounding.semantics.encoder.pool_ids`), the pooled vectors next to the
     non-encoder inputs, then :func:`predict_all`, and with ``knn`` (:attr:`Head.knn`) the nearest-neighbour
-    vote blended into the intent probabilities (:func:`knn_blend`, ``knn_k`` neighbours of the text's pooled
+    vote blended into the intent (and intensity) probabilities (:func:`knn_blend`, ``knn_k`` neighbours of the text's pooled
     vector ``knn_pool``: 0 the whole text, 1 its chosen part).
 
     Args: enc_params (:meth:`Head.encoder_params`); ids, mask ``(B, L)``; pools ``(B, 4, L)``; extras ``(B, E)``
@@ -293,7 +305,7 @@ def predict_tuned(
     x = jnp.concatenate([pooled.reshape(pooled.shape[0], -1), extras], axis=1)
     p_intent, p_intensity, p_why = _predict_all(params, x, temperature)
     if knn is not None:
-        p_intent = knn_blend(knn, p_intent, pooled[:, knn_pool], extras, knn_k)
+        p_intent, p_intensity = knn_blend(knn, p_intent, p_intensity, pooled[:, knn_pool], extras, knn_k)
     return p_intent, p_intensity, p_why, pooled[:, 0]
 
 
@@ -463,21 +475,25 @@ def load(path: str | None = None) -> Head:
 KNN_ASSET = ASSET.with_name("semantic_knn.npz")
 
 
-def knn_digest(table, labels) -> str:
-    """Digest of a nearest-neighbour table: its vectors (float16) and their intent labels."""
+def knn_digest(table, labels, intensities=None) -> str:
+    """Digest of a nearest-neighbour table: its vectors (float16), their intent labels and, for a table with an
+    intensity vote, their intensity labels."""
     h = hashlib.sha256(np.asarray(table, np.float16).tobytes())
     h.update(np.asarray(labels, np.int32).tobytes())
+    if intensities is not None:
+        h.update(np.asarray(intensities, np.int32).tobytes())
     return h.hexdigest()[:16]
 
 
-def save_knn(path, table, labels, gate, meta: dict) -> Path:
+def save_knn(path, table, labels, gate, meta: dict, intensities=None) -> Path:
     """Write a nearest-neighbour table atomically: ``table`` ``(N, 384)`` unit vectors (stored float16),
     ``labels`` ``(N,)`` in 0..16, ``gate`` ``(E,)`` 0/1 over the extras; ``meta``: k, tau, a, threshold,
-    head_digest (the head whose encoder made the vectors); its digest is added (:func:`knn_digest`)."""
+    head_digest (the head whose encoder made the vectors), and ``b`` (the intensity vote's weight) with
+    ``intensities`` ``(N,)`` in 0..3 or -1 (no label); its digest is added (:func:`knn_digest`)."""
     from jgrounding.io import write_atomic
 
     table = np.asarray(table, np.float16)
-    meta = dict(meta, digest=knn_digest(table, labels))
+    meta = dict(meta, digest=knn_digest(table, labels, intensities))
     buf = io.BytesIO()
     np.savez(
         buf,
@@ -485,6 +501,7 @@ def save_knn(path, table, labels, gate, meta: dict) -> Path:
         labels=np.asarray(labels, np.int8),
         gate=np.asarray(gate, np.float32),
         meta=json.dumps(meta, sort_keys=True),
+        **({} if intensities is None else {"intensities": np.asarray(intensities, np.int8)}),
     )
     return write_atomic(path, buf.getvalue())
 
@@ -492,8 +509,9 @@ def save_knn(path, table, labels, gate, meta: dict) -> Path:
 def load_knn(head_digest: str, path=None) -> dict | None:
     """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
     missing or was made for another head): ``arrays``, the device arrays :func:`knn_blend` reads (``table``
-    ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``, and
-    ``temperature`` when the meta's is not 1), and its ``meta`` (which pooled vector, k, the refitted threshold).
+    ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``,
+    ``temperature`` when the meta's is not 1, and ``onehot_z`` ``(N, 4)`` with ``b`` when the table has an
+    intensity vote), and its ``meta`` (which pooled vector, k, the refitted threshold).
     ``ValueError`` when its digest does not match."""
     path = Path(path or KNN_ASSET)
     if not path.exists():
@@ -503,7 +521,8 @@ def load_knn(head_digest: str, path=None) -> dict | None:
         if meta.get("head_digest") != head_digest:
             return None
         table, labels, gate = f["table"], f["labels"].astype(np.int32), f["gate"]
-    if knn_digest(table, labels) != meta["digest"]:
+        intensities = f["intensities"].astype(np.int32) if "intensities" in f.files else None
+    if knn_digest(table, labels, intensities) != meta["digest"]:
         raise ValueError(
             f"{path}: the table's digest does not match its meta; regenerate it with `python -m tools.semantics_knn --write`"
         )
@@ -517,6 +536,12 @@ def load_knn(head_digest: str, path=None) -> dict | None:
             "a": np.float32(meta["a"]),
         }
         | ({"temperature": np.float32(meta["temperature"])} if meta.get("temperature", 1.0) != 1.0 else {})
+        | (
+            # one-hot rows of the labelled intensities; -1 (no label) picks eye(5)'s last row, all zero in the first 4
+            {"onehot_z": np.eye(5, dtype=np.float32)[intensities][:, :4], "b": np.float32(meta["b"])}
+            if intensities is not None and meta.get("b", 0.0) > 0
+            else {}
+        )
     )
     return {"arrays": arrays, "meta": meta}
 

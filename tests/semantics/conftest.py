@@ -22,7 +22,7 @@ def head():
 @pytest.fixture(scope="module")
 def head_with_vote(head, tmp_path_factory):
     """The shipped head with a small nearest-neighbour table made for it here (the shipped variant's form: its
-    sentence vectors, the "no motion words" gate; 64 training situations), so the vote's paths are tested whether
+    sentence vectors, the "no motion words" gate, an intensity vote; 64 training situations), so the vote's paths are tested whether
     or not a table ships (tools.semantics_knn ships one only when it passes its rule on dev)."""
     from pathlib import Path
 
@@ -32,8 +32,8 @@ def head_with_vote(head, tmp_path_factory):
     rows = [json.loads(line) for line in (root / SITUATIONS).read_text().splitlines()[:64]]
     x = features.head_inputs(head, [r["text"] for r in rows])
     table = semantics_knn.representation("sentence", head.params, x)
-    labels, _ = semantics_knn.ts.labels(rows)
+    labels, intensities = semantics_knn.ts.labels(rows)
     gate = semantics_knn.gate_vector(x.shape[1] - semantics_knn.POOLED)
-    meta = dict(k=10, tau=0.05, a=0.5, head_digest=head.meta["params_digest"], threshold=head.threshold, rows=64)
-    path = sh.save_knn(tmp_path_factory.mktemp("knn") / "knn.npz", table, labels, gate, meta)
+    meta = dict(k=10, tau=0.05, a=0.5, b=0.5, head_digest=head.meta["params_digest"], threshold=head.threshold, rows=64)
+    path = sh.save_knn(tmp_path_factory.mktemp("knn") / "knn.npz", table, labels, gate, meta, intensities)
     return dataclasses.replace(head, knn=sh.load_knn(head.meta["params_digest"], path))

@@ -40,11 +40,15 @@ def test_a_shipped_table_is_the_shipped_heads_and_passed_its_rule(head):
 def test_the_table_rows_hold_the_vote_only_rows_that_the_head_never_trained_on():
     # The table's rows: the training corpora, then the vote-only situations (assets/semantics_vote/), in
     # tools.semantics_knn.table_rows' order. The head's trainer must not read the vote-only rows.
+    # The blind writers' training splits follow (the head trains on them; only the "+blind" table holds them).
     rows, files = semantics_knn.table_rows()
     vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS.glob("*.jsonl")])
+    blind = np.char.startswith(files.astype(str), "blind/")
     assert vote_only.sum() == 1024 and (files != "generated.jsonl")[vote_only].all()
     corpora, _ = train_semantics.load_train(blind=())
-    assert len(corpora) == len(rows) - vote_only.sum()
+    assert len(corpora) == len(rows) - vote_only.sum() - blind.sum()
+    assert blind.sum() == sum(len(train_semantics.read_jsonl(p)) for p in train_semantics.BLIND_TRAIN)
+    assert blind[-blind.sum() :].all()
     trained, _ = train_semantics.load_train()
     assert not {r["text"] for r in trained} & {r["text"] for r, v in zip(rows, vote_only) if v}
 
@@ -64,6 +68,28 @@ def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_
     np.savez(path, **arrays)
     with pytest.raises(ValueError, match="digest"):
         sh.load_knn("x", path)
+
+
+def test_a_table_with_an_intensity_vote_loads_it_and_its_labels_are_in_the_digest(tmp_path):
+    rng = np.random.default_rng(1)
+    table = rng.normal(size=(5, features.EMBED_DIM))
+    table /= np.linalg.norm(table, axis=1, keepdims=True)
+    meta = dict(k=2, tau=0.05, a=0.5, b=0.4, head_digest="x")
+    z = np.array([0, 3, -1, 2, 1])
+    path = sh.save_knn(tmp_path / "knn.npz", table, np.arange(5), np.zeros(4), meta, intensities=z)
+    arrays = sh.load_knn("x", path)["arrays"]
+    onehot_z = np.asarray(arrays["onehot_z"])
+    np.testing.assert_array_equal(onehot_z[[0, 1, 3, 4]], np.eye(4)[[0, 3, 2, 1]])
+    assert not onehot_z[2].any() and float(arrays["b"]) == pytest.approx(0.4)  # no label: no intensity vote
+    with np.load(path) as f:
+        saved = {k: f[k] for k in f.files}
+    saved["intensities"] = saved["intensities"][::-1].copy()
+    np.savez(path, **saved)
+    with pytest.raises(ValueError, match="digest"):
+        sh.load_knn("x", path)
+    # b = 0 (or no intensities): the table carries no intensity vote
+    path = sh.save_knn(tmp_path / "k0.npz", table, np.arange(5), np.zeros(4), dict(meta, b=0.0), intensities=z)
+    assert "onehot_z" not in sh.load_knn("x", path)["arrays"]
 
 
 def test_the_vote_moves_a_situation_toward_its_neighbours_intent(head_with_vote):
@@ -112,10 +138,42 @@ def test_shipped_blend_equals_the_dev_comparison():
     extras[1, 0] = 1.0  # names an action: no vote
     knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 0, 0]))
     knn |= dict(tau=np.float32(0.05), a=np.float32(0.4))
-    got = np.asarray(sh.knn_blend(knn, p, q, extras, 7))
+    pz = np.full((5, 4), 0.25, np.float32)
+    got, got_z = (np.asarray(a) for a in sh.knn_blend(knn, p, pz, q, extras, 7))
+    np.testing.assert_array_equal(got_z, pz)  # no intensity vote in this table
     want = 0.6 * p + 0.4 * semantics_knn.knn_vote(q, table, labels, 7, 0.05)
     want[1] = p[1]
     np.testing.assert_allclose(got, want, atol=1e-5)
+
+
+def test_the_intensity_vote_blends_the_labelled_neighbours_intensities_for_the_gated_texts():
+    """The intensity vote: the same k neighbours (weights exp((sim - best) / tau)), those with an intensity label,
+    blended with weight b into the head's intensity for the texts the gate lets through; a text whose
+    neighbours hold no intensity label, or that the gate stops, keeps the head's."""
+    table, labels, q, p = _random_vote(3, 30, 6)
+    rng = np.random.default_rng(3)
+    z = rng.integers(-1, 4, 30)
+    extras = np.zeros((6, 2), np.float32)
+    extras[4, 0] = 1.0  # names an action: no vote
+    pz = rng.dirichlet(np.ones(4), 6).astype(np.float32)
+    knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 0.0]))
+    knn |= dict(tau=np.float32(0.05), a=np.float32(0.5), b=np.float32(0.3))
+    knn["onehot_z"] = np.eye(5, dtype=np.float32)[z][:, :4]
+    _, got = sh.knn_blend(knn, p, pz, q, extras, 4)
+    sim = q @ table.T
+    top = np.argsort(-sim, 1)[:, :4]
+    s = np.take_along_axis(sim, top, 1)
+    w = np.exp((s - s[:, :1]) / 0.05)
+    want = pz.astype(np.float64).copy()
+    for i in range(6):
+        vote = np.zeros(4)
+        for j in range(4):
+            if z[top[i, j]] >= 0:
+                vote[z[top[i, j]]] += w[i, j]
+        if i != 4 and vote.sum() > 0:
+            want[i] = 0.7 * pz[i] + 0.3 * vote / vote.sum()
+    np.testing.assert_allclose(np.asarray(got), want, atol=1e-5)
+    assert not np.allclose(want, pz)  # the vote moved some text
 
 
 def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
@@ -126,12 +184,13 @@ def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
     extras[2, 1] = 1.0  # names an action: no vote, but the temperature still applies
     knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 1.0]))
     knn |= dict(tau=np.float32(0.05), a=np.float32(0.7), temperature=np.float32(0.6))
-    got = np.asarray(sh.knn_blend(knn, p, q, extras, 5))
+    pz = np.full((4, 4), 0.25, np.float32)
+    got = np.asarray(sh.knn_blend(knn, p, pz, q, extras, 5)[0])
     blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
     blend[2] = p[2]
     np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
     knn["gate"] = np.zeros(2, np.float32)  # an empty gate: every text votes
-    got = np.asarray(sh.knn_blend(knn, p, q, extras, 5))
+    got = np.asarray(sh.knn_blend(knn, p, pz, q, extras, 5)[0])
     blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
     np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
 

@@ -45,9 +45,9 @@ def test_one_program_equals_the_encoder_then_the_head(which, request):
         dim = features.EMBED_DIM
         query = x[:, head.knn_pool * dim : (head.knn_pool + 1) * dim]
         vote = semantic_head.knn_blend(
-            head.knn["arrays"], two_step[0], query, x[:, features.POOLED_FEATURES :], head.knn_k
+            head.knn["arrays"], two_step[0], two_step[1], query, x[:, features.POOLED_FEATURES :], head.knn_k
         )
-        two_step[0] = np.asarray(vote)
+        two_step[0], two_step[1] = (np.asarray(a) for a in vote)
     batched = embedded.predict_tuned_many(head, TEXTS)
     alone = [embedded.predict_tuned_many(head, [t]) for t in TEXTS]
     for k in range(3):

@@ -53,7 +53,7 @@ def test_each_blind_training_file_is_well_formed(path):
     ids=lambda p: p.name,
 )
 def test_the_situation_writers_files_follow_their_brief(path):
-    """s5-s9, s12, s13: 20 texts per intent, 5 per intensity, situation style, none naming a motion."""
+    """s5-s9, s12, s13, s15-s18: 20 texts per intent, 5 per intensity, situation style, none naming a motion."""
     rows = _rows(path)
     assert {r["style"] for r in rows} == {"situation"}
     counts = {}
