@@ -167,8 +167,15 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
     m, _, _ = sh.decide(pm, pz)
     sit = np.array([row.get("style") == "situation" for row in dev])
     report = {}  # what a tighter confident-wrong budget than ts.TARGET_WRONG would cost, at the same probabilities
-    for target in budgets:
-        t = ts.calibrate_threshold(pm, pz, dev, target=target, situations=held.get("blind"))
+    for target in budgets:  # the situations' budget: the same, or the shipped one where that is tighter
+        t = ts.calibrate_threshold(
+            pm,
+            pz,
+            dev,
+            target=target,
+            situations=held.get("blind"),
+            situation_target=min(target, ts.SITUATION_TARGET_WRONG),
+        )
         report[target] = {"threshold": t, "dev": ts.selective(pm, pz, dev, t)}
         report[target] |= {name: ts.selective(*h, t) for name, h in held.items()}
     return dict(
@@ -184,7 +191,8 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
     )
 
 
-# Confident-wrong budgets whose thresholds the chosen variant's line reports: the shipped one (ts.TARGET_WRONG, 2 % on
+# Confident-wrong budgets on v2 dev whose thresholds the chosen variant's line reports (the situation hold-out's stays
+# ts.SITUATION_TARGET_WRONG, or the budget where that is tighter): the shipped one (ts.TARGET_WRONG, 2 % on
 # dev) first, then tighter ones (#34's goal on the frozen benches is 1 %).
 BUDGETS = (ts.TARGET_WRONG, 0.015, 0.01)
 
@@ -427,7 +435,10 @@ def write(head, x_train, train_intent, train_intensity, tables, x, p_head, score
             f" thr {r['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in d.items()})}"
             f" plain {r['plain_intent']:.3f} {_holdout_line(r)}; ship rule: {ok}"
         )
-        print(f"  confident-wrong budgets (ts.TARGET_WRONG {ts.TARGET_WRONG}): {budget_line(r)}")
+        print(
+            f"  confident-wrong budgets on v2 dev (ts.TARGET_WRONG {ts.TARGET_WRONG}; situation hold-out"
+            f" {ts.SITUATION_TARGET_WRONG} or the budget): {budget_line(r)}"
+        )
         scored_choices.append((choice, table, labels, intensities, r, ok))
     passing = [c for c in scored_choices if c[-1]]
     if dry:

@@ -18,7 +18,7 @@ option's softmax temperature is fitted on v2 dev and the situation hold-out toge
 are its intensity cut points (NLL of the motion texts' intensities, :func:`fit_cut_points`), then its confidence
 threshold:
 the lowest at which the confident wrong motions on v2 dev (acted on with the wrong intent, or acted on a
-no-behaviour text) and on the situation hold-out stay within ``TARGET_WRONG``. The option with the best dev score (:func:`dev_score`) is
+no-behaviour text) stay within ``TARGET_WRONG`` and those on the situation hold-out within ``SITUATION_TARGET_WRONG``. The option with the best dev score (:func:`dev_score`) is
 shipped (:func:`ship_choice`: of the options within :data:`SHIP_MARGIN` of the best, the fewest encoder layers). The
 test splits are never read here. Deterministic: fixed keys and seeded minibatch order. Frozen encoder features are
 cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span code), so re-runs skip the encoder; the
@@ -67,6 +67,10 @@ DISTILL_EXTRA = (
 )
 CACHE = ROOT / ".cache" / "semantics"
 TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test is 3%; a margin for the shift)
+# ... and on the blind situation hold-out (SITUATION_DEV). #34's goal on the frozen blind benches is 1 %, and the
+# situation benches came out at 1.6-2.0 % with the hold-out at 2 % (seventh session, decided before its retrain):
+# holding still is the safe failure, and with an MLLM configured an unsure text is asked of it instead.
+SITUATION_TARGET_WRONG = 0.01
 # The options compared on dev. "eq3": the first trained head's inputs (sentence embedding + Eq. (3) cue
 # features), retrained on the same data; "structure": the structure-aware inputs (the sentence, its chosen,
 # rejected and quoted parts pooled apart from one encoder pass, Eq. (3) cues of the chosen part, structure flags).
@@ -264,13 +268,15 @@ def selective(p_m: np.ndarray, p_z: np.ndarray, rows, threshold: float) -> dict:
     }
 
 
-def calibrate_threshold(p_m, p_z, rows, target=TARGET_WRONG, situations=None) -> float:
+def calibrate_threshold(
+    p_m, p_z, rows, target=TARGET_WRONG, situations=None, situation_target=SITUATION_TARGET_WRONG
+) -> float:
     """The lowest threshold (0.025 steps) whose confident wrong motions on ``rows`` stay within ``target``, and,
-    with ``situations`` (``(p_m, p_z, rows)`` of the :data:`SITUATION_DEV` hold-out), on those too: v2 dev holds
-    29 situations, too few to see the situations a head acts on wrongly."""
+    with ``situations`` (``(p_m, p_z, rows)`` of the :data:`SITUATION_DEV` hold-out), on those within
+    ``situation_target``: v2 dev holds 29 situations, too few to see the situations a head acts on wrongly."""
     for t in np.round(np.arange(0.1, 0.976, 0.025), 3):
         if selective(p_m, p_z, rows, t)["confident_wrong"] <= target and (
-            situations is None or selective(*situations, t)["confident_wrong"] <= target
+            situations is None or selective(*situations, t)["confident_wrong"] <= situation_target
         ):
             return float(t)
     return 0.975
@@ -753,6 +759,7 @@ def main(argv=None) -> int:
         "dev_ece": b["dev"]["ece"],
         "dev_ece_uncalibrated": selective(*_probs(b["_params"], b["_xd"]), dev, b["threshold"])["ece"],
         "target_wrong": TARGET_WRONG,
+        "situation_target_wrong": SITUATION_TARGET_WRONG,
         "config": dataclasses.asdict(b["_cfg"]),
         "params_digest": sh.digest(b["_params"]),
         "comparison": comparison,

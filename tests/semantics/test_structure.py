@@ -180,6 +180,10 @@ def test_the_threshold_keeps_the_situations_confident_wrongs_within_the_budget_t
     assert ts.calibrate_threshold(pm, pz, dev) == 0.1
     t = ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows))
     assert t == 0.725 and ts.selective(spm, spz, sit_rows, t)["confident_wrong"] == 0
+    # the situations' budget is its own (ts.SITUATION_TARGET_WRONG): 1 wrong of 20 (5 %) passes a 5 % one
+    spm[19] = spm[0]  # the second wrong situation is now right: 1 of 20 wrong at 0.7
+    assert ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows), situation_target=0.05) == 0.1
+    assert ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows), situation_target=0.01) == 0.725
 
 
 def test_semantics_module_exports_ground_many():
