@@ -9,6 +9,9 @@ wording; the detector learns the same decision from examples. Data (nothing else
 - **no motion** (label 1): the texts with intent ``none`` of ``assets/semantics_eval_v3/train.jsonl`` (two blind
   writers' nine kinds) and ``assets/semantics_eval_w3/train.jsonl`` (a third blind writer's, the same kinds);
   never their ``bench.jsonl``, which only ``python -m experiments.bench_semantics`` reads;
+- **no motion, detector only** (label 1): the texts with intent ``none`` of
+  ``assets/semantics_nomotion_train/*/train.jsonl`` (blind writers of the seventh session, the same nine kinds),
+  which the head is not trained on (:data:`DETECTOR_ONLY`); their contrast texts are motion texts as below;
 - **motion** (label 0): those files' contrast texts ("don't X; just Y": they choose a motion), the situation-only
   and mixed texts of ``assets/semantics_eval_s3/train.jsonl`` (a fourth blind writer's; each style its own source)
   and every motion text of ``assets/semantics_train/*.jsonl``, the head's own training corpora (their ``none``
@@ -40,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding.semantics import nomotion, structure
+from tools.semantics_corpus import normalized
 from tools.train_semantics import BLIND_TRAIN  # the blind writers' training splits: the head's and the detector's
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -62,6 +66,12 @@ STEP = 0.0025  # the threshold grid
 # per source, and one writer's 192 contrast texts would make it "at most one text").
 CONTRAST = "blind contrast"
 NO_MOTION = "blind no motion"
+EXTRA_NO_MOTION = "detector-only no motion"  # the no-motion texts of DETECTOR_ONLY (a source of their own)
+# Blind writers' no-motion and contrast texts that only the detector learns from (the head is not trained on them, so
+# tools.train_semantics still rebuilds the shipped head): one folder per writer, its raw files converted by
+# assets/semantics_nomotion_train/convert.py.
+DETECTOR_ONLY_DIR = ROOT / "assets" / "semantics_nomotion_train"
+DETECTOR_ONLY = tuple(sorted(DETECTOR_ONLY_DIR.glob("*/train.jsonl")))
 
 
 def max_false_hold(source: str) -> float:
@@ -82,10 +92,12 @@ def read_jsonl(path) -> list[dict]:
     return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
 
 
-def training_rows(blind=None, train_dir=TRAIN_DIR) -> list[dict]:
+def training_rows(blind=None, train_dir=TRAIN_DIR, detector_only=None) -> list[dict]:
     """The rows the detector learns from: ``{"text", "label", "source"}``, label 1 for no motion (see the
-    module docstring), in file order. ``blind``: the blind writers' ``train.jsonl`` files (default :data:`BLIND_TRAIN`)."""
+    module docstring), in file order. ``blind``: the blind writers' ``train.jsonl`` files (default :data:`BLIND_TRAIN`);
+    ``detector_only``: the files only the detector reads (default :data:`DETECTOR_ONLY`)."""
     blind = BLIND_TRAIN if blind is None else blind
+    detector_only = DETECTOR_ONLY if detector_only is None else detector_only
     rows = [
         {
             "text": r["text"],
@@ -94,6 +106,17 @@ def training_rows(blind=None, train_dir=TRAIN_DIR) -> list[dict]:
         }
         for path in blind
         for r in read_jsonl(path)
+    ]
+    seen = {normalized(r["text"]) for r in rows}  # a detector-only text the head's files hold already is not repeated
+    rows += [
+        {
+            "text": r["text"],
+            "label": int(r["intent"] == "none"),
+            "source": EXTRA_NO_MOTION if r["intent"] == "none" else blind_source(r),
+        }
+        for path in detector_only
+        for r in read_jsonl(path)
+        if normalized(r["text"]) not in seen
     ]
     for path in sorted(Path(train_dir).glob("*.jsonl")):
         rows += [
@@ -262,6 +285,10 @@ def train_detector(rows) -> tuple[dict, float, dict]:
             "max_false_hold_situation": {s: MAX_FALSE_HOLD_SITUATION for s in SITUATION_SOURCES},
             "no_motion_held": round(float(held[label == 1].mean()), 4),
             "no_motion_held_with_rule": round(float(either[label == 1].mean()), 4),
+            "no_motion_held_with_rule_by_source": {
+                s: round(float(either[(label == 1) & (source == s)].mean()), 4)
+                for s in sorted(set(source[label == 1].tolist()))
+            },
             "false_hold": {s: round(v, 4) for s, v in false_holds(held, label, source).items()},
             "false_hold_with_rule": {s: round(v, 4) for s, v in false_holds(either, label, source).items()},
         },
@@ -278,7 +305,9 @@ def main(argv=None) -> int:
     cv = meta["cv"]
     print(
         f"threshold {threshold:.4f}: held-out no-motion texts held {cv['no_motion_held']:.3f} "
-        f"({cv['no_motion_held_with_rule']:.3f} with the rule); motion texts held per source "
+        f"({cv['no_motion_held_with_rule']:.3f} with the rule; by source "
+        + ", ".join(f"{s} {v:.3f}" for s, v in cv["no_motion_held_with_rule_by_source"].items())
+        + "); motion texts held per source "
         + ", ".join(f"{s} {v:.4f}" for s, v in cv["false_hold"].items())
     )
     out = Path(args.out)

@@ -88,3 +88,39 @@ def test_the_second_reader_labelled_every_hold_out_text_and_agreement_counts_by_
     assert (r["intent"], r["intensity_exact"], r["within_one"], r["both"]) == (2 / 3, 2 / 3, 1.0, 1 / 3)
     with pytest.raises(ValueError, match="different ids"):
         la.agreement(a, {"x": b["x"]})
+
+
+def test_the_detector_only_texts_are_well_formed_unseen_by_the_head_and_never_evaluated_on():
+    """assets/semantics_nomotion_train/*/train.jsonl (tools.train_nomotion.DETECTOR_ONLY): the converted raw files
+    of their writers (nine no-motion kinds and contrast texts), read by the detector's trainer only, sharing no text
+    with any evaluated file; a text that a file the head trains on holds too (w8 wrote a log line w4 wrote) is
+    left out of the detector's rows, so no text is learned twice."""
+    from tools import train_nomotion
+
+    assert train_nomotion.DETECTOR_ONLY, "no detector-only files"
+    head_reads = {_norm(r["text"]) for path, _ in train_semantics.train_files().values() for r in _rows(path)}
+    evaluated = {_norm(r["text"]) for path in _evaluated().values() for r in _rows(path)}
+    for path in train_nomotion.DETECTOR_ONLY:
+        rows = _rows(path)
+        raw = sum(len(_rows(path.parent / f"{kind}_raw.jsonl")) for kind in ("nomotion", "contrast"))
+        assert len(rows) == raw and len({r["id"] for r in rows}) == len(rows)
+        for r in rows:
+            assert KEYS <= set(r), r
+            if r["intent"] == "none":
+                assert r["intensity"] is None and r["style"] != "contrast", r
+            else:
+                assert r["style"] == "contrast" and r["intent"] in INTENTS and r["intensity"] in INTENSITIES, r
+                assert r["rejected"] in INTENTS and r["rejected"] != r["intent"], r
+        texts = {_norm(r["text"]) for r in rows}
+        assert not texts & evaluated, path
+        assert len(texts & head_reads) <= 2, path
+    trained = train_nomotion.training_rows()
+    sources = {r["source"] for r in trained}
+    assert train_nomotion.EXTRA_NO_MOTION in sources and train_nomotion.CONTRAST in sources
+    without = train_nomotion.training_rows(detector_only=())
+    n_blind = sum(len(_rows(path)) for path in train_semantics.BLIND_TRAIN)  # then the detector-only rows, the corpora
+    n_extra = len(trained) - len(without)
+    assert trained[:n_blind] == without[:n_blind] and trained[n_blind + n_extra :] == without[n_blind:]
+    written = [r for path in train_nomotion.DETECTOR_ONLY for r in _rows(path)]
+    repeated = {_norm(r["text"]) for r in written} & {_norm(r["text"]) for r in without[:n_blind]}
+    assert n_extra == sum(_norm(r["text"]) not in repeated for r in written)  # a text the head's files hold is left out
