@@ -385,6 +385,13 @@ def table_rows() -> tuple[list[dict], np.ndarray]:
     return rows, np.array(files)
 
 
+def best_passing(scores: list[float], passes: list[bool]) -> int | None:
+    """Which of :data:`CHOICES` ships: the index of the highest dev score among those that pass the ship rule, the
+    earlier on a tie (None: none passes)."""
+    ok = [i for i, p in enumerate(passes) if p]
+    return max(ok, key=lambda i: (round(scores[i], 9), -i)) if ok else None
+
+
 def write(head, x_train, train_intent, train_intensity, tables, x, p_head, scored, base, dry: bool = False) -> int:
     """Score each of :data:`CHOICES` (the chosen family's tables, with and without the intensity vote) through the
     shipped blend (:func:`jgrounding.semantics.head.knn_blend`, float16 table) and write the highest v2 dev score
@@ -440,12 +447,12 @@ def write(head, x_train, train_intent, train_intensity, tables, x, p_head, score
             f" {ts.SITUATION_TARGET_WRONG} or the budget): {budget_line(r)}"
         )
         scored_choices.append((choice, table, labels, intensities, r, ok))
-    passing = [c for c in scored_choices if c[-1]]
+    pick = best_passing([c[4]["score"] for c in scored_choices], [c[-1] for c in scored_choices])
     if dry:
-        if passing:
-            print(f"would write {max(passing, key=lambda c: c[4]['score'])[0]}")
+        if pick is not None:
+            print(f"would write {scored_choices[pick][0]}")
         return 0
-    if not passing:
+    if pick is None:
         stale = ""
         if sh.KNN_ASSET.exists():  # a table made for an earlier head: grounding ignores it; remove it
             with np.load(sh.KNN_ASSET) as f:
@@ -454,8 +461,7 @@ def write(head, x_train, train_intent, train_intensity, tables, x, p_head, score
                 sh.KNN_ASSET.unlink()
                 stale = f"; removed {sh.KNN_ASSET.name}, made for another head ({made_for})"
         raise SystemExit(f"no variant of {CHOICES} passes the ship rule on dev: no vote ships{stale}")
-    best = max(r["score"] for *_, r, _ in passing)
-    choice, table, labels, intensities, r, _ = next(c for c in passing if c[4]["score"] >= best - 1e-9)
+    choice, table, labels, intensities, r, _ = scored_choices[pick]
     meta = dict(
         k=choice["k"],
         tau=choice["tau"],

@@ -53,27 +53,33 @@ def test_the_table_rows_hold_the_vote_only_rows_that_the_head_never_trained_on()
     assert not {r["text"] for r in trained} & {r["text"] for r, v in zip(rows, vote_only) if v}
 
 
-def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_path):
-    rng = np.random.default_rng(0)
-    table = rng.normal(size=(6, features.EMBED_DIM))
-    table /= np.linalg.norm(table, axis=1, keepdims=True)
-    path = sh.save_knn(
-        tmp_path / "knn.npz", table, np.arange(6), np.zeros(4), dict(k=2, tau=0.05, a=0.5, head_digest="x")
-    )
-    assert sh.load_knn("another head", path) is None
-    assert sh.load_knn("x", path)["meta"]["k"] == 2
+def _unit_rows(seed: int, n: int) -> np.ndarray:
+    table = np.random.default_rng(seed).normal(size=(n, features.EMBED_DIM))
+    return table / np.linalg.norm(table, axis=1, keepdims=True)
+
+
+def _refused_once_reversed(path, key: str) -> None:
+    """Reverse one array of a saved table: loading it must fail on its digest."""
     with np.load(path) as f:
         arrays = {k: f[k] for k in f.files}
-    arrays["labels"] = arrays["labels"][::-1].copy()
+    arrays[key] = arrays[key][::-1].copy()
     np.savez(path, **arrays)
     with pytest.raises(ValueError, match="digest"):
         sh.load_knn("x", path)
 
 
+def test_a_table_for_another_head_is_not_used_and_a_tampered_one_is_refused(tmp_path):
+    table = _unit_rows(0, 6)
+    path = sh.save_knn(
+        tmp_path / "knn.npz", table, np.arange(6), np.zeros(4), dict(k=2, tau=0.05, a=0.5, head_digest="x")
+    )
+    assert sh.load_knn("another head", path) is None
+    assert sh.load_knn("x", path)["meta"]["k"] == 2
+    _refused_once_reversed(path, "labels")
+
+
 def test_a_table_with_an_intensity_vote_loads_it_and_its_labels_are_in_the_digest(tmp_path):
-    rng = np.random.default_rng(1)
-    table = rng.normal(size=(5, features.EMBED_DIM))
-    table /= np.linalg.norm(table, axis=1, keepdims=True)
+    table = _unit_rows(1, 5)
     meta = dict(k=2, tau=0.05, a=0.5, b=0.4, head_digest="x")
     z = np.array([0, 3, -1, 2, 1])
     path = sh.save_knn(tmp_path / "knn.npz", table, np.arange(5), np.zeros(4), meta, intensities=z)
@@ -81,12 +87,7 @@ def test_a_table_with_an_intensity_vote_loads_it_and_its_labels_are_in_the_diges
     onehot_z = np.asarray(arrays["onehot_z"])
     np.testing.assert_array_equal(onehot_z[[0, 1, 3, 4]], np.eye(4)[[0, 3, 2, 1]])
     assert not onehot_z[2].any() and float(arrays["b"]) == pytest.approx(0.4)  # no label: no intensity vote
-    with np.load(path) as f:
-        saved = {k: f[k] for k in f.files}
-    saved["intensities"] = saved["intensities"][::-1].copy()
-    np.savez(path, **saved)
-    with pytest.raises(ValueError, match="digest"):
-        sh.load_knn("x", path)
+    _refused_once_reversed(path, "intensities")
     # b = 0 (or no intensities): the table carries no intensity vote
     path = sh.save_knn(tmp_path / "k0.npz", table, np.arange(5), np.zeros(4), dict(meta, b=0.0), intensities=z)
     assert "onehot_z" not in sh.load_knn("x", path)["arrays"]
@@ -212,3 +213,10 @@ def test_a_tighter_confident_wrong_budget_never_lowers_the_threshold_nor_adds_wr
     for target, x in r["budgets"].items():
         assert x["dev"]["confident_wrong"] <= target or x["threshold"] == 0.975
     assert "budget 0.010: thr" in semantics_knn.budget_line(r)
+
+
+def test_the_vote_written_is_the_best_dev_score_that_passes_the_rule_the_earlier_on_a_tie():
+    assert semantics_knn.best_passing([0.92, 0.93, 0.95], [True, True, False]) == 1
+    assert semantics_knn.best_passing([0.927, 0.927, 0.93], [True, True, False]) == 0  # a tie: the earlier
+    assert semantics_knn.best_passing([0.9, 0.9], [False, False]) is None
+    assert [c["b"] for c in semantics_knn.CHOICES] == [0.0, 0.5, 0.0, 0.5]  # each table without, then with
