@@ -112,7 +112,7 @@ GOALS = {
 # Where what was tried is written up, for the goals (keys of GOALS) that fell short in some run.
 TRIED = {
     "intent": "more training situations (640 shipped; 256 and 1,024 more, not shipped; 1,024 written from the v2 "
-    "writer's brief, trained on: not shipped, in the vote's table: shipped; 2,240 from seven blind writers: shipped), "
+    "writer's brief, trained on: not shipped, in the vote's table: shipped; 3,520 from eleven blind writers: shipped), "
     "calibration on situations (shipped), label smoothing, four tuned layers, a "
     "lighter generated corpus, model soups, 1,920 nearest-neighbour vote variants (one shipped), a stronger encoder "
     "(none in the registry that ships its weights fits the budget): docs/how_it_works.md, section 1",

@@ -412,7 +412,7 @@ def write(head, x_train, train_intent, train_intensity, tables, x, p_head, score
         knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
         knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
         if b > 0:  # as sh.load_knn builds it: unlabelled rows vote for no intensity
-            knn |= {"onehot_z": np.eye(5, dtype=np.float32)[intensities][:, :4], "b": np.float32(b)}
+            knn |= {"onehot_z": sh.intensity_onehot(intensities), "b": np.float32(b)}
 
         def vote(xs, p):
             if not len(xs):
@@ -481,10 +481,9 @@ def write(head, x_train, train_intent, train_intensity, tables, x, p_head, score
         dev_score=r["score"],
         head_alone={k: base[k] for k in ("score", "situation", "threshold", "dev", "plain_intent")},
     )
-    path = sh.save_knn(sh.KNN_ASSET, table, labels, gate, meta, intensities if choice["b"] > 0 else None)
-    print(
-        f"wrote {path}: {choice} ({len(labels)} rows, digest {sh.knn_digest(table, labels, intensities if choice['b'] > 0 else None)})"
-    )
+    z_labels = intensities if choice["b"] > 0 else None  # only a table with an intensity vote stores them
+    path = sh.save_knn(sh.KNN_ASSET, table, labels, gate, meta, z_labels)
+    print(f"wrote {path}: {choice} ({len(labels)} rows, digest {sh.knn_digest(table, labels, z_labels)})")
     return 0
 
 

@@ -506,6 +506,14 @@ def save_knn(path, table, labels, gate, meta: dict, intensities=None) -> Path:
     return write_atomic(path, buf.getvalue())
 
 
+def intensity_onehot(intensities) -> np.ndarray:
+    """One-hot rows ``(N, 4)`` float32 of intensity labels ``(N,)`` in 0..3; -1 (no label) gives a zero row, which
+    votes for no intensity in :func:`knn_blend`."""
+    return np.eye(5, dtype=np.float32)[np.asarray(intensities)][
+        :, :4
+    ]  # -1 picks eye(5)'s last row: zero in the first 4
+
+
 def load_knn(head_digest: str, path=None) -> dict | None:
     """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
     missing or was made for another head): ``arrays``, the device arrays :func:`knn_blend` reads (``table``
@@ -537,8 +545,7 @@ def load_knn(head_digest: str, path=None) -> dict | None:
         }
         | ({"temperature": np.float32(meta["temperature"])} if meta.get("temperature", 1.0) != 1.0 else {})
         | (
-            # one-hot rows of the labelled intensities; -1 (no label) picks eye(5)'s last row, all zero in the first 4
-            {"onehot_z": np.eye(5, dtype=np.float32)[intensities][:, :4], "b": np.float32(meta["b"])}
+            {"onehot_z": intensity_onehot(intensities), "b": np.float32(meta["b"])}
             if intensities is not None and meta.get("b", 0.0) > 0
             else {}
         )
