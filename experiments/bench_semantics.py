@@ -88,6 +88,8 @@ BENCH_V3 = {
     "s11 bench": ROOT / "assets" / "semantics_eval_s11" / "bench.jsonl",
     "s14 bench": ROOT / "assets" / "semantics_eval_s14" / "bench.jsonl",
     "w6 bench": ROOT / "assets" / "semantics_eval_w6" / "bench.jsonl",
+    "s22 bench": ROOT / "assets" / "semantics_eval_s22" / "bench.jsonl",
+    "w9 bench": ROOT / "assets" / "semantics_eval_w9" / "bench.jsonl",
 }
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {

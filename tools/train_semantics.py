@@ -13,12 +13,12 @@ no-behaviour class; their
 
 Options (:data:`OPTIONS`) are compared on the dev splits: ``assets/semantics_eval_v2/dev.jsonl`` (the styles
 real reasoners write, with no-behaviour texts), ``assets/semantics_eval/dev.jsonl`` (plainly worded) and the blind
-situation hold-out (:data:`SITUATION_DEV`: v2 dev holds 29 situations). Each
-option's softmax temperature is fitted on v2 dev and the situation hold-out together (NLL over the 17 classes), so
+situation hold-outs (:data:`SITUATION_DEVS`: two writers; v2 dev holds 29 situations). Each
+option's softmax temperature is fitted on v2 dev and the situation hold-outs together (NLL over the 17 classes), so
 are its intensity cut points (NLL of the motion texts' intensities, :func:`fit_cut_points`), then its confidence
 threshold:
 the lowest at which the confident wrong motions on v2 dev (acted on with the wrong intent, or acted on a
-no-behaviour text) stay within ``TARGET_WRONG`` and those on the situation hold-out within ``SITUATION_TARGET_WRONG``. The option with the best dev score (:func:`dev_score`) is
+no-behaviour text) stay within ``TARGET_WRONG`` and those on the situation hold-outs (pooled) within ``SITUATION_TARGET_WRONG``. The option with the best dev score (:func:`dev_score`) is
 shipped (:func:`ship_choice`: of the options within :data:`SHIP_MARGIN` of the best, the fewest encoder layers). The
 test splits are never read here. Deterministic: fixed keys and seeded minibatch order. Frozen encoder features are
 cached in ``.cache/semantics/`` (keyed by the texts and the encoder and span code), so re-runs skip the encoder; the
@@ -58,6 +58,11 @@ DEV_PLAIN = ROOT / "assets" / "semantics_eval" / "dev.jsonl"
 # evaluation set; never trained on. Its intent accuracy at each option's dev threshold is one term of the ship score
 # (dev_score). tools.semantics_knn reports it as its "blind" hold-out.
 SITUATION_DEV = ROOT / "assets" / "semantics_dev_situations_blind.jsonl"
+# A second writer's hold-out (eighth session), never trained on either: the calibration (temperature, cut points,
+# threshold) of a head read on one writer's situations, selected on many times, was optimistic on the blind benches
+# (ECE up to 0.079 and confident wrongs up to 2 % against the hold-out's 1 %). Both together are SITUATION_DEVS.
+SITUATION_DEV2 = ROOT / "assets" / "semantics_dev_situations_blind2.jsonl"
+SITUATION_DEVS = (SITUATION_DEV, SITUATION_DEV2)
 # Texts a student's distillation reads beside the training texts (labels unused: distillation matches the teacher's
 # token states): the vote's 1,024 situations and the 1,024 of the unshipped second situations corpus, so that the
 # student learns the teacher's reading of situations on more of them than the training corpora hold.
@@ -67,7 +72,7 @@ DISTILL_EXTRA = (
 )
 CACHE = ROOT / ".cache" / "semantics"
 TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test is 3%; a margin for the shift)
-# ... and on the blind situation hold-out (SITUATION_DEV). #34's goal on the frozen blind benches is 1 %, and the
+# ... and on the blind situation hold-outs (SITUATION_DEVS, pooled). #34's goal on the frozen blind benches is 1 %, and the
 # situation benches came out at 1.6-2.0 % with the hold-out at 2 % (seventh session, decided before its retrain):
 # holding still is the safe failure, and with an MLLM configured an unsure text is asked of it instead.
 SITUATION_TARGET_WRONG = 0.01
@@ -80,7 +85,7 @@ SITUATION_TARGET_WRONG = 0.01
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
 # The blind writers' training splits (#34): the contrast and no-motion texts of v3 (two writers), w3 and w4, s3's
-# situation-only and mixed texts, and the situation-only texts of eleven more writers (s5-s9, s12, s13, s15-s18,
+# situation-only and mixed texts, and the situation-only texts of thirteen more writers (s5-s9, s12, s13, s15-s20,
 # written for training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The
 # benches (bench.jsonl) stay frozen. tools.train_nomotion reads the same files.
 BLIND_TRAIN_DIR = ROOT / "assets" / "semantics_blind_train"
@@ -89,7 +94,7 @@ BLIND_TRAIN = tuple(
     for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3", "semantics_eval_w4")
 ) + tuple(
     BLIND_TRAIN_DIR / f"situations_{w}.jsonl"
-    for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13", "s15", "s16", "s17", "s18")
+    for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13", "s15", "s16", "s17", "s18", "s19", "s20")
 )
 BLIND_WEIGHT = 2.0
 OPTIONS = {
@@ -272,7 +277,7 @@ def calibrate_threshold(
     p_m, p_z, rows, target=TARGET_WRONG, situations=None, situation_target=SITUATION_TARGET_WRONG
 ) -> float:
     """The lowest threshold (0.025 steps) whose confident wrong motions on ``rows`` stay within ``target``, and,
-    with ``situations`` (``(p_m, p_z, rows)`` of the :data:`SITUATION_DEV` hold-out), on those within
+    with ``situations`` (``(p_m, p_z, rows)`` of the :data:`SITUATION_DEVS` hold-outs), on those within
     ``situation_target``: v2 dev holds 29 situations, too few to see the situations a head acts on wrongly."""
     for t in np.round(np.arange(0.1, 0.976, 0.025), 3):
         if selective(p_m, p_z, rows, t)["confident_wrong"] <= target and (
@@ -306,7 +311,7 @@ def fit_cut_points(params, x, rows, grid=np.arange(-1.5, 1.501, 0.25)) -> tuple[
 def dev_score(r: dict, plain: dict, situations: dict | None = None) -> float:
     """Mean of the v2-dev intent accuracy on motion texts, intensity exact, share of motion acted on, share of
     no-behaviour texts held, and the plainly worded dev intent accuracy (so it cannot fall unseen); with
-    ``situations`` (the ship rule's score: the :data:`SITUATION_DEV` hold-out at the same threshold), its intent
+    ``situations`` (the ship rule's score: the :data:`SITUATION_DEVS` hold-outs at the same threshold), its intent
     accuracy too."""
     terms = [r["intent_motion"], r["intensity_exact"], r["coverage_motion"], r["none_held"], plain["intent_motion"]]
     if situations is not None:
@@ -634,14 +639,119 @@ def _probs(params, x, temperature=1.0):
     return tuple(np.asarray(a) for a in sh.predict(params, x, temperature))
 
 
+def calibrate(params, dev, plain, situations) -> dict:
+    """Fit a trained head's calibration and score it: ``dev``, ``plain``, ``situations`` are ``(features, rows)``
+    of v2 dev, the plainly worded dev split and the situation hold-outs (:data:`SITUATION_DEVS`; rows may be empty).
+
+    On v2 dev and the situation hold-outs together (situations are where the confidence and the intensity were off
+    on the blind benches, and v2 dev holds 29 of them): the intensity cut points (:func:`fit_cut_points`, shifted
+    from the trained ones), then the softmax temperature (NLL of the 17 classes); then the confidence threshold
+    (:func:`calibrate_threshold`) and the ship score (:func:`dev_score`). Returns the calibrated params (``_params``)
+    and what the report and the shipped meta hold."""
+    (xd, dev), (xp, plain), (xsit, sit) = dev, plain, situations
+    trained_cuts = np.asarray(sh.thresholds(params), np.float64)
+    xc, cal_rows = (np.concatenate([xd, xsit]), dev + sit) if sit else (xd, dev)
+    cuts, shifts = fit_cut_points(params, xc, cal_rows)
+    params = calibration.with_cut_points(params, cuts)
+    temperature = calibration.fit_temperature(lambda t: _probs(params, xc, t)[0], labels(cal_rows)[0])
+    pm, pz = _probs(params, xd, temperature)
+    ps = (*_probs(params, xsit, temperature), sit) if sit else None
+    threshold = calibrate_threshold(pm, pz, dev, situations=ps)
+    r = selective(pm, pz, dev, threshold)
+    rp = selective(*_probs(params, xp, temperature), plain, threshold)
+    rs = selective(*ps, threshold) if sit else None
+    return dict(
+        temperature=temperature,
+        cut_points={"trained": trained_cuts.round(4).tolist(), "fitted on dev": cuts.round(4).tolist()},
+        cut_point_shifts=shifts.tolist(),
+        threshold=threshold,
+        dev=r,
+        dev_plain=rp,
+        situations=rs,
+        score=dev_score(r, rp, rs),
+        _params=params,
+        _xd=xd,
+    )
+
+
+def print_option(name: str, c: dict) -> None:
+    """One line of an option's calibrated dev results (:func:`calibrate`)."""
+    r, rp, rs = c["dev"], c["dev_plain"], c["situations"]
+    print(
+        f"  {name:15s} score {c['score']:.3f} | v2 dev: intent {r['intent_motion']:.3f} exact {r['intensity_exact']:.3f}"
+        f" within1 {r['intensity_within_one']:.3f} acted {r['coverage_motion']:.3f} wrong {r['confident_wrong']:.3f}"
+        f" held {r['none_held']:.3f} ECE {r['ece']:.3f} (T {c['temperature']:.2f}, thr {c['threshold']:.3f},"
+        f" cut point shifts {c['cut_point_shifts']})"
+        f" | plain dev intent {rp['intent_motion']:.3f}"
+        + (
+            f" | situations intent {rs['intent_motion']:.3f} acted {rs['coverage_motion']:.3f}"
+            f" wrong {rs['confident_wrong']:.3f} ECE {rs['ece']:.3f}"
+            if rs
+            else ""
+        ),
+        flush=True,
+    )
+
+
+def read_situations(paths=SITUATION_DEVS) -> list[dict]:
+    """The rows of the situation hold-outs (:data:`SITUATION_DEVS`), in order."""
+    return [r for path in paths for r in read_jsonl(path)]
+
+
+def recalibrate(path: Path, dev, plain, sit, situation_files: dict) -> int:
+    """``--recalibrate``: the head at ``path`` calibrated again (:func:`calibrate`, from its trained cut points) on
+    the dev splits and the situation hold-outs ``sit``, written back with its old calibration in the meta. The
+    params digest changes with the cut points: the vote's table and the no-motion detector need rebuilding."""
+    head = sh.load(str(path))
+    # the trained cut points: the shipped ones less the fitted shift (a step of fit_cut_points' grid; the meta's
+    # copies are rounded to 4 decimals)
+    cuts = head.meta["cut_points"]
+    shift = np.round((np.array(cuts["fitted on dev"]) - np.array(cuts["trained"])) / 0.25) * 0.25
+    params = dict(head.params)
+    params = calibration.with_cut_points(params, np.asarray(sh.thresholds(params), np.float64) - shift)
+    xd, xp, xs = (features.head_inputs(head, [r["text"] for r in rows]) for rows in (dev, plain, sit))
+    c = calibrate(params, (xd, dev), (xp, plain), (xs, sit))
+    print_option(head.meta["selected"], c)
+    before = {k: head.meta[k] for k in ("temperature", "threshold", "cut_points", "params_digest")}
+    meta = dict(
+        head.meta,
+        temperature=c["temperature"],
+        threshold=c["threshold"],
+        cut_points=c["cut_points"],
+        dev=c["dev"],
+        dev_plain=c["dev_plain"],
+        dev_ece=c["dev"]["ece"],
+        situation_target_wrong=SITUATION_TARGET_WRONG,
+        situation_files=situation_files,
+        params_digest=sh.digest(c["_params"]),
+        recalibrated_from=before,
+    )
+    with np.load(path) as f:
+        deltas = sh.unflatten({k.split("/", 1)[1]: f[k] for k in f.files if k.startswith("top/")})
+    sh.save(path, c["_params"], head.config, meta, deltas)
+    sh.load.cache_clear()
+    print(
+        f"recalibrated {path.name}: temperature {before['temperature']:.2f} -> {c['temperature']:.2f}, threshold "
+        f"{before['threshold']:.3f} -> {c['threshold']:.3f}; params {before['params_digest']} -> {meta['params_digest']}"
+    )
+    return 0
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--dev", default=str(DEV))
     p.add_argument("--dev-plain", default=str(DEV_PLAIN))
     p.add_argument(
         "--situations",
-        default=str(SITUATION_DEV),
-        help="situation-only selection texts, one term of the ship score ('' leaves the term out)",
+        default=",".join(str(x) for x in SITUATION_DEVS),
+        help="situation-only hold-outs, comma-separated: calibration, threshold and one term of the ship score "
+        "('' leaves them out)",
+    )
+    p.add_argument(
+        "--recalibrate",
+        action="store_true",
+        help="train nothing: fit the calibration of the head at --out again (its trained cut points, temperature, "
+        "threshold) on the dev splits and --situations, and write it back",
     )
     p.add_argument("--out", default=str(sh.ASSET))
     p.add_argument("--train-dir", default=str(TRAIN_DIR), help="folder of the training *.jsonl files")
@@ -665,7 +775,11 @@ def main(argv=None) -> int:
     if not dev:
         print(f"{args.dev} missing: selecting and calibrating on {args.dev_plain} alone")
         dev = plain
-    sit = read_jsonl(args.situations) if args.situations else []
+    sit_paths = [Path(x) for x in args.situations.split(",") if x]
+    sit = read_situations(sit_paths)
+    situation_files = {x.name: hashlib.sha256(x.read_bytes()).hexdigest()[:16] for x in sit_paths}
+    if args.recalibrate:
+        return recalibrate(Path(args.out), dev, plain, sit, situation_files)
     reasons = reason_classes(rows)
     weights = {name: w for name, (_, w) in train_files(args.train_dir, blind).items()}
     print(f"train: {len(rows)} rows; dev: {len(dev)} + plain {len(plain)} rows; file weights {weights}")
@@ -699,43 +813,10 @@ def main(argv=None) -> int:
             xp = inputs(opt["inputs"], xs_plain, [r["text"] for r in plain])
             xsit = inputs(opt["inputs"], xs_sit, [r["text"] for r in sit]) if sit else None
             params, cfg = fit(inputs(opt["inputs"], xs, texts), rows, row_weight, reasons=reasons, **opt)
-        trained_cuts = np.asarray(sh.thresholds(params), np.float64)
-        # Calibrated on v2 dev and the situation hold-out together: situations are where the confidence and the
-        # intensity were off on the blind benches (ECE 0.09-0.12), and v2 dev holds 29 of them.
-        xc, cal_rows = (np.concatenate([xd, xsit]), dev + sit) if sit else (xd, dev)
-        cuts, shifts = fit_cut_points(params, xc, cal_rows)
-        params = calibration.with_cut_points(params, cuts)
-        temperature = calibration.fit_temperature(lambda t: _probs(params, xc, t)[0], labels(cal_rows)[0])
-        pm, pz = _probs(params, xd, temperature)
-        ps = (*_probs(params, xsit, temperature), sit) if sit else None
-        threshold = calibrate_threshold(pm, pz, dev, situations=ps)
-        r = selective(pm, pz, dev, threshold)
-        rp = selective(*_probs(params, xp, temperature), plain, threshold)
-        rs = selective(*ps, threshold) if sit else None
-        score = dev_score(r, rp, rs)
         results[name] = dict(
-            option=opt,
-            temperature=temperature,
-            cut_points={"trained": trained_cuts.round(4).tolist(), "fitted on dev": cuts.round(4).tolist()},
-            threshold=threshold,
-            dev=r,
-            dev_plain=rp,
-            situations=rs,
-            score=score,
-            _params=params,
-            _cfg=cfg,
-            _deltas=deltas,
-            _xd=xd,
+            option=opt, **calibrate(params, (xd, dev), (xp, plain), (xsit, sit)), _cfg=cfg, _deltas=deltas
         )
-        print(
-            f"  {name:15s} score {score:.3f} | v2 dev: intent {r['intent_motion']:.3f} exact {r['intensity_exact']:.3f}"
-            f" within1 {r['intensity_within_one']:.3f} acted {r['coverage_motion']:.3f} wrong {r['confident_wrong']:.3f}"
-            f" held {r['none_held']:.3f} ECE {r['ece']:.3f} (T {temperature:.2f}, thr {threshold:.3f},"
-            f" cut point shifts {shifts.tolist()})"
-            f" | plain dev intent {rp['intent_motion']:.3f}"
-            + (f" | situations intent {rs['intent_motion']:.3f} acted {rs['coverage_motion']:.3f}" if rs else ""),
-            flush=True,
-        )
+        print_option(name, results[name])
     best = ship_choice({k: (v["score"], v["_cfg"]) for k, v in results.items()})
     b = results[best]
     digests = {
@@ -754,6 +835,7 @@ def main(argv=None) -> int:
         "train_files": digests,
         "file_weights": weights,
         "dev_file": hashlib.sha256(Path(args.dev).read_bytes()).hexdigest()[:16] if Path(args.dev).exists() else "",
+        "situation_files": situation_files,
         "dev": b["dev"],
         "dev_plain": b["dev_plain"],
         "dev_ece": b["dev"]["ece"],

@@ -57,5 +57,28 @@ def test_a_distillation_is_cached_and_read_back(monkeypatch, tmp_path, capsys):
 def test_the_extra_distillation_texts_are_situations_without_motion_labels_used():
     texts = ts.distill_texts()
     assert len(texts) == 2048 and len(set(texts)) > 2000
-    held = {r["text"] for r in ts.read_jsonl(ts.SITUATION_DEV)}
+    held = {r["text"] for r in ts.read_situations(ts.SITUATION_DEVS)}
     assert not held & set(texts)  # the situation selection set is never distilled on
+
+
+def test_recalibrating_the_shipped_head_on_its_own_sets_gives_back_its_calibration(tmp_path, capsys):
+    """``tools.train_semantics --recalibrate`` (calibrate again, train nothing) on the situation hold-outs the shipped
+    head was calibrated on gives its temperature, threshold and cut points back, and the same probabilities."""
+    from jgrounding.semantics import head as sh
+
+    shipped = sh.load()
+    files = shipped.meta.get("situation_files") or {ts.SITUATION_DEV.name: None}
+    paths = [ts.ROOT / "assets" / name for name in files]
+    out = tmp_path / "head.npz"
+    out.write_bytes(Path(sh.ASSET).read_bytes())
+    assert ts.main(["--recalibrate", "--situations", ",".join(map(str, paths)), "--out", str(out)]) == 0
+    again = sh.load(str(out))
+    assert (again.meta["temperature"], again.meta["threshold"]) == (
+        shipped.meta["temperature"],
+        shipped.meta["threshold"],
+    )
+    assert again.meta["cut_points"] == shipped.meta["cut_points"]
+    for name in shipped.params:
+        np.testing.assert_allclose(np.asarray(again.params[name]), np.asarray(shipped.params[name]), rtol=1e-6)
+    assert again.meta["recalibrated_from"]["params_digest"] == shipped.meta["params_digest"]
+    assert "recalibrated head.npz" in capsys.readouterr().out

@@ -24,14 +24,14 @@ KEYS = {"id", "text", "intent", "intensity", "style"}
 def _evaluated() -> dict[str, Path]:
     """Every file whose texts the project evaluates or selects on: the frozen benches (those the bench reads and any
     parked for a later change's judgement), the dev and test splits (the ones the corpus generator keeps its lines
-    out of) and the blind situation hold-out of the ship rule."""
+    out of) and the blind situation hold-outs of the ship rule and the calibration."""
     files = dict(bench_semantics.BENCH_V3)
     for folder in sorted(train_semantics.ROOT.glob("assets/semantics_eval_*")):
         # a set parked for a later change has no bench.jsonl yet: its writer's raw files are all frozen
         frozen = [folder / "bench.jsonl"] if (folder / "bench.jsonl").exists() else sorted(folder.glob("*_raw.jsonl"))
         files |= {f"{folder.name}/{path.name}": path for path in frozen}
     files |= {f"{path.parent.name}/{path.name}": path for path in EVAL_SPLITS}
-    files["situation dev"] = train_semantics.SITUATION_DEV
+    files |= {f"situation dev {path.name}": path for path in train_semantics.SITUATION_DEVS}
     return files
 
 
