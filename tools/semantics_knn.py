@@ -147,8 +147,12 @@ def sharpen(p: np.ndarray, t: float) -> np.ndarray:
     return q / q.sum(1, keepdims=True)
 
 
-def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, held=None, budgets=()) -> dict:
+def evaluate(
+    pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, held=None, budgets=(), target=ts.TARGET_WRONG
+) -> dict:
     """Threshold (and optionally a temperature on the blend) fitted on v2 dev; the dev metrics and score.
+    ``target``: the confident-wrong budget on v2 dev (a vote's is the head's own rate where that is lower:
+    :func:`vote_target`).
     ``held``: hold-out name -> ``(p_intent, p_intensity, rows)``, each scored at the same threshold. ``budgets``:
     confident-wrong budgets (:data:`BUDGETS`) whose thresholds and what they act on are reported too."""
     dev_intent, _ = ts.labels(dev)
@@ -161,7 +165,7 @@ def evaluate(pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, he
         for name, (hm, hz, hrows) in (held or {}).items()
     }
     # the head's rule (ts.calibrate_threshold): v2 dev's confident wrongs, and the blind situations' ones
-    threshold = ts.calibrate_threshold(pm, pz, dev, situations=held.get("blind"))
+    threshold = ts.calibrate_threshold(pm, pz, dev, target=target, situations=held.get("blind"))
     r = ts.selective(pm, pz, dev, threshold)
     rp = ts.selective(pm_plain, pz_plain, plain, threshold)
     holdout = {name: ts.selective(*h, threshold) for name, h in held.items()}
@@ -215,6 +219,15 @@ def budget_line(v: dict) -> str:
 METRICS = ("intent_motion", "intensity_exact", "intensity_within_one", "coverage_motion", "none_held")
 
 
+def vote_target(base: dict) -> float:
+    """The confident-wrong budget on v2 dev of a vote's threshold: ts.TARGET_WRONG, or the head's own rate at its
+    threshold where that is lower. The ship rule (:func:`qualifies`) lets no vote add confident wrongs on dev, so a
+    vote's threshold is the lowest that adds none, rather than one at the looser budget that the rule then refuses
+    (eighth session: the head calibrated on two situation hold-outs acts at 0.950 with 0.6 % confident wrong on v2
+    dev, and every vote at its 2 % threshold, 0.850, failed on 1.9 %)."""
+    return min(ts.TARGET_WRONG, base["dev"]["confident_wrong"])
+
+
 def qualifies(v: dict, base: dict) -> bool:
     """The ship rule: a higher dev score and situation accuracy, no other dev metric worse. The situation hold-out
     is reported beside it, not part of it: a variant chosen on the hold-out did worse on the frozen v2 test."""
@@ -264,6 +277,8 @@ def main(argv=None) -> int:
     p_head = {n: [np.asarray(a, np.float64) for a in sh.predict(head.params, x[n], head.temperature)] for n in sets}
     pz_head = {n: p[1] for n, p in p_head.items()}  # the intensity stays the head's (unless an intensity vote)
 
+    target = {"dev": ts.TARGET_WRONG}  # the head's budget; the votes' (vote_target) once the head is scored
+
     def scored(pm: dict, refit: bool, budgets=(), pz: dict | None = None) -> dict:
         """:func:`evaluate` of intent probabilities for every set, with the head's intensities or ``pz``'s."""
         pz = pz or pz_head
@@ -278,6 +293,7 @@ def main(argv=None) -> int:
             refit,
             held=held,
             budgets=budgets,
+            target=target["dev"],
         )
 
     train_intent, train_intensity = ts.labels(rows)
@@ -285,6 +301,7 @@ def main(argv=None) -> int:
     dev, plain = sets["dev"], sets["plain"]
     base = scored({n: p[0] for n, p in p_head.items()}, False)
     assert base["threshold"] == head.threshold, "the refit must give the shipped head's threshold"
+    target["dev"] = vote_target(base)
     print(
         f"shipped head: score {base['score']:.3f} situation {base['situation']:.3f} "
         f"thr {base['threshold']:.3f} {json.dumps({k: round(v, 3) for k, v in base['dev'].items()})} "

@@ -220,3 +220,21 @@ def test_the_vote_written_is_the_best_dev_score_that_passes_the_rule_the_earlier
     assert semantics_knn.best_passing([0.927, 0.927, 0.93], [True, True, False]) == 0  # a tie: the earlier
     assert semantics_knn.best_passing([0.9, 0.9], [False, False]) is None
     assert [c["b"] for c in semantics_knn.CHOICES] == [0.0, 0.5, 0.0, 0.5]  # each table without, then with
+
+
+def test_a_votes_threshold_adds_no_confident_wrong_over_the_heads_on_dev():
+    """vote_target: a vote's dev budget is the head's own confident-wrong rate where that is below TARGET_WRONG, so the
+    threshold evaluate() fits for it meets the ship rule's 'no more confident wrongs' instead of failing it."""
+    assert semantics_knn.vote_target({"dev": {"confident_wrong": 0.006}}) == 0.006
+    assert semantics_knn.vote_target({"dev": {"confident_wrong": 0.05}}) == train_semantics.TARGET_WRONG
+    rng = np.random.default_rng(1)
+    rows = [{"intent": INTENTS[i % 16], "intensity": "moderate", "style": "situation"} for i in range(200)]
+    intent, _ = train_semantics.labels(rows)
+    logits = rng.normal(0, 1, (len(rows), sh.NUM_CLASSES))
+    logits[np.arange(len(rows)), intent] += rng.uniform(0, 4, len(rows))
+    pm = np.exp(logits) / np.exp(logits).sum(1, keepdims=True)
+    pz = np.full((len(rows), 4), 0.25)
+    loose = semantics_knn.evaluate(pm, pz, rows, pm, pz, rows, False)
+    tight = semantics_knn.evaluate(pm, pz, rows, pm, pz, rows, False, target=0.005)
+    assert tight["dev"]["confident_wrong"] <= 0.005 < loose["dev"]["confident_wrong"]
+    assert tight["threshold"] > loose["threshold"]
