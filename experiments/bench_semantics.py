@@ -634,6 +634,22 @@ def ours_ms(params: dict, texts: list[str], reps: int) -> dict:
     }
 
 
+def peer_isa_env(xla_flags: str | None = None) -> dict[str, str]:
+    """The environment that limits PyTorch to the ISA ``XLA_FLAGS`` limits XLA to (``--xla_cpu_max_isa=AVX2``):
+    ATen's kernels (``ATEN_CPU_CAPABILITY``), oneDNN (``ONEDNN_MAX_CPU_ISA``) and MKL's products
+    (``MKL_ENABLE_INSTRUCTIONS``), so that both sides of the comparison run the same vector width (on an AVX-512
+    machine an unlimited peer would run AVX-512 against our AVX2). Empty when XLA is not limited."""
+    flags = os.environ.get("XLA_FLAGS", "") if xla_flags is None else xla_flags
+    isa = next((f.split("=", 1)[1] for f in flags.split() if f.startswith("--xla_cpu_max_isa=")), "")
+    if not isa:
+        return {}
+    return {
+        "ATEN_CPU_CAPABILITY": isa.lower(),
+        "ONEDNN_MAX_CPU_ISA": isa.upper(),
+        "MKL_ENABLE_INSTRUCTIONS": isa.upper(),
+    }
+
+
 def run_peer(
     python, weights: Path, out: Path, modes: str, reps: int, timeout: float | None = None, inductor: Path | None = None
 ) -> dict:
@@ -642,7 +658,7 @@ def run_peer(
     cold compile's, as on a user's first run). Raises ``CalledProcessError`` / ``TimeoutExpired``."""
     cmd = [str(python), str(PEER_SCRIPT), str(weights), str(out), "--modes", modes, "--reps", str(reps)]
     cache = inductor or out.parent / f"inductor-{out.stem}"
-    env = {**os.environ, "PYTHONPATH": "", "TORCHINDUCTOR_CACHE_DIR": str(cache)}
+    env = {**os.environ, "PYTHONPATH": "", "TORCHINDUCTOR_CACHE_DIR": str(cache), **peer_isa_env()}
     subprocess.run(cmd, check=True, cwd=ROOT, env=env, timeout=timeout)
     return json.loads(out.read_text())
 
@@ -772,6 +788,7 @@ def peer_comparison(splits: dict, python, n: int = PEER_TEXTS, reps: int = PEER_
     names["torch_eager_minilm6"] = "six-layer MiniLM"
     round_text = "; ".join(f"{names[k]} {', '.join(f'{x:.2f}' for x in v)} ms" for k, v in round_ms.items())
     cos_text = ", ".join(f"{cosines[m]:.6f} ({m})" for m in cosines)
+    isa_env = peer_isa_env()
     lines = [
         PEER_START,
         "",
@@ -779,7 +796,9 @@ def peer_comparison(splits: dict, python, n: int = PEER_TEXTS, reps: int = PEER_
         "",
         f"CPU: {cpu_model()} ({cpu_isa()}), {os.cpu_count()} cores, load average {load:.2f} at the start; "
         f"PyTorch {peer['torch']} with {peer['threads']} threads ({peer['interop_threads']} inter-op; "
-        f"ATEN_CPU_CAPABILITY: {os.environ.get('ATEN_CPU_CAPABILITY') or 'default'}), "
+        f"kernels dispatched to {peer.get('cpu_capability', 'an unreported ISA')}"
+        + (f", limited as XLA is: {', '.join(f'{k}={v}' for k, v in isa_env.items())}" if isa_env else "")
+        + "), "
         f"JAX {jax.__version__} (XLA_FLAGS: {os.environ.get('XLA_FLAGS') or 'none'}). {len(texts)} texts spread "
         f"evenly over the v2 and plain test splits ({lengths.min()} to {lengths.max()} tokens, median "
         f"{np.median(lengths):g}; our buckets median {typical}), each alone, warm. Ours and the peer alternate pass "
@@ -836,6 +855,8 @@ def peer_comparison(splits: dict, python, n: int = PEER_TEXTS, reps: int = PEER_
         "tokens": {"min": int(lengths.min()), "max": int(lengths.max()), "median": float(np.median(lengths))},
         "torch": peer["torch"],
         "torch_threads": peer["threads"],
+        "torch_cpu_capability": peer.get("cpu_capability"),
+        "torch_isa_env": isa_env,
         "jax": jax.__version__,
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "tokenize_ms_median": tok_ms,
@@ -1264,8 +1285,8 @@ def main(argv=None) -> int:
     ]
     lines += [
         "",
-        f"Shipped head: option `{head.meta.get('selected')}`, temperature {head.temperature:.2f} fitted on v2 dev and the blind situation hold-out, "
-        f"confidence threshold {head.threshold:.3f} on v2 dev and the blind situation hold-out "
+        f"Shipped head: option `{head.meta.get('selected')}`, temperature {head.temperature:.2f} fitted on v2 dev and the blind situation hold-outs, "
+        f"confidence threshold {head.threshold:.3f} on v2 dev and the blind situation hold-outs "
         f"(tools.train_semantics.calibrate_threshold); params {head.meta['params_digest']}.",
     ]
     fig = figure(curves, RESULTS / "semantics_risk_coverage.png")

@@ -138,6 +138,7 @@ def main(argv=None) -> int:
         "torch": torch.__version__,
         "threads": torch.get_num_threads(),
         "interop_threads": torch.get_num_interop_threads(),
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),  # the ISA ATen's kernels dispatch to
         "n": len(w["lengths"]),
         "tokenization": "not included (token ids and masks from our tokenizer, exported by the JAX side)",
         "modes": {},

@@ -44,7 +44,11 @@ import numpy as np
 
 from jgrounding.semantics import nomotion, structure
 from tools.semantics_corpus import normalized
-from tools.train_semantics import BLIND_TRAIN  # the blind writers' training splits: the head's and the detector's
+from tools.train_semantics import BLIND_TRAIN, UNSHIPPED_TRAIN  # the blind writers' training splits
+
+# The blind writers' files the detector reads, in order: the head's (BLIND_TRAIN) and two writers' situations that the
+# shipped head is not trained on (UNSHIPPED_TRAIN, eighth session: motion texts here).
+DETECTOR_BLIND = BLIND_TRAIN + UNSHIPPED_TRAIN
 
 ROOT = Path(__file__).resolve().parent.parent
 TRAIN_DIR = ROOT / "assets" / "semantics_train"
@@ -94,9 +98,9 @@ def read_jsonl(path) -> list[dict]:
 
 def training_rows(blind=None, train_dir=TRAIN_DIR, detector_only=None) -> list[dict]:
     """The rows the detector learns from: ``{"text", "label", "source"}``, label 1 for no motion (see the
-    module docstring), in file order. ``blind``: the blind writers' ``train.jsonl`` files (default :data:`BLIND_TRAIN`);
+    module docstring), in file order. ``blind``: the blind writers' ``train.jsonl`` files (default :data:`DETECTOR_BLIND`);
     ``detector_only``: the files only the detector reads (default :data:`DETECTOR_ONLY`)."""
-    blind = BLIND_TRAIN if blind is None else blind
+    blind = DETECTOR_BLIND if blind is None else blind
     detector_only = DETECTOR_ONLY if detector_only is None else detector_only
     rows = [
         {

@@ -85,7 +85,7 @@ SITUATION_TARGET_WRONG = 0.01
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
 # The blind writers' training splits (#34): the contrast and no-motion texts of v3 (two writers), w3 and w4, s3's
-# situation-only and mixed texts, and the situation-only texts of thirteen more writers (s5-s9, s12, s13, s15-s20,
+# situation-only and mixed texts, and the situation-only texts of eleven more writers (s5-s9, s12, s13, s15-s18,
 # written for training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The
 # benches (bench.jsonl) stay frozen. tools.train_nomotion reads the same files.
 BLIND_TRAIN_DIR = ROOT / "assets" / "semantics_blind_train"
@@ -94,8 +94,14 @@ BLIND_TRAIN = tuple(
     for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3", "semantics_eval_w4")
 ) + tuple(
     BLIND_TRAIN_DIR / f"situations_{w}.jsonl"
-    for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13", "s15", "s16", "s17", "s18", "s19", "s20")
+    for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13", "s15", "s16", "s17", "s18")
 )
+# Two more writers' situations (eighth session, 320 each, assets/semantics_blind_train/): the head retrained with them
+# in BLIND_TRAIN scored 0.923 on dev against the recalibrated head's 0.918, but without a vote (none passed its rule
+# for it) it lost to the recalibrated head with its vote on dev as users call it (docs/how_it_works.md), so the head
+# is not trained on them and this module still rebuilds the shipped head. The no-motion detector, trained beside
+# that retrain, reads them as motion texts (tools.train_nomotion: BLIND_TRAIN + UNSHIPPED_TRAIN).
+UNSHIPPED_TRAIN = tuple(BLIND_TRAIN_DIR / f"situations_{w}.jsonl" for w in ("s19", "s20"))
 BLIND_WEIGHT = 2.0
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),
@@ -608,9 +614,11 @@ def cached_distill(teacher: dict, encoder_layers: tuple[int, ...], texts: list[s
         print(f"  {name}: distilled before, read from {path}", flush=True)
         with np.load(path) as f:
             return sh.unflatten({k: f[k] for k in f.files})
+    t = hashlib.sha256()
+    _hash_arrays(t, teacher)
     print(
         f"  {name}: distilling the tuned encoder into its layers {encoder_layers} on {len(texts)} texts "
-        f"({DISTILL_STEPS} steps)",
+        f"({DISTILL_STEPS} steps; cache key {path.stem}, teacher {t.hexdigest()[:16]})",
         flush=True,
     )
     student, _ = distill(teacher, encoder_layers, texts, steps=DISTILL_STEPS)

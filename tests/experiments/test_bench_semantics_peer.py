@@ -110,3 +110,11 @@ def test_the_speed_goal_is_judged_on_avx2_or_on_the_ratio_to_the_same_weights(mo
     assert "5 ms goal met" in bench.speed_goal_line(rows)
     rows["torch_eager_minilm6"] = {"ms_median": 12.0}
     assert "six-layer MiniLM a user would run instead 3.00x" in bench.speed_goal_line(rows)
+
+
+def test_the_peer_is_limited_to_the_isa_xla_is_limited_to():
+    """With XLA_FLAGS --xla_cpu_max_isa=AVX2 the peer's ATen kernels, oneDNN and MKL are held to AVX2 too (an
+    AVX-512 machine would otherwise compare its AVX-512 PyTorch with our AVX2); unlimited, nothing is set."""
+    env = bench.peer_isa_env("--xla_force_host_platform_device_count=1 --xla_cpu_max_isa=AVX2")
+    assert env == {"ATEN_CPU_CAPABILITY": "avx2", "ONEDNN_MAX_CPU_ISA": "AVX2", "MKL_ENABLE_INSTRUCTIONS": "AVX2"}
+    assert bench.peer_isa_env("") == {} and bench.peer_isa_env("--xla_cpu_multi_thread_eigen=false") == {}
