@@ -165,23 +165,29 @@ def metrics(items: list[dict], preds: list) -> dict:
     z_true = np.array([INTENSITIES.index(it["intensity"]) if it["intent"] != "none" else -9 for it in items])
     acted = np.array([g.confident for g in preds])
     conf = np.array([g.confidence for g in preds])
-    ok = (m == true) & motion
+    return _rates(motion, (m == true) & motion, z, z_true, ~acted, acted, conf)
+
+
+def _rates(motion, ok, z, z_true, held, acted=None, conf=None) -> dict:
+    """The columns of :func:`metrics` from per-text arrays: ``motion`` (the text calls for a motion), ``ok`` (right
+    intent on a motion text), intensity levels ``z`` / ``z_true``, ``held`` (no motion made), and, for a reducer,
+    ``acted`` and ``conf`` (a reading without confidence: None, and its columns None)."""
 
     def mean(x):
         return float(np.mean(x)) if len(x) else None
 
     return {
-        "n": len(items),
+        "n": len(motion),
         "n_motion": int(motion.sum()),
         "n_none": int((~motion).sum()),
         "intent": mean(ok[motion]),
-        "acted": mean(acted[motion]),
-        "acted_accuracy": mean(ok[motion & acted]),
-        "confident_wrong": mean((acted & ~ok)[motion]),
-        "none_held": mean(~acted[~motion]),
+        "acted": None if acted is None else mean(acted[motion]),
+        "acted_accuracy": None if acted is None else mean(ok[motion & acted]),
+        "confident_wrong": None if acted is None else mean((acted & ~ok)[motion]),
+        "none_held": mean(held[~motion]),
         "exact": mean((z == z_true)[motion]),
         "within_one": mean((np.abs(z - z_true) <= 1)[motion]),
-        "ece": calibration.expected_calibration_error(conf, ok),
+        "ece": None if conf is None else calibration.expected_calibration_error(conf, ok),
     }
 
 
@@ -207,23 +213,7 @@ def reader_metrics(items: list[dict], labels: dict[str, tuple[str, str]]) -> dic
     level = {z: i for i, z in enumerate(INTENSITIES)}
     z_true = np.array([level.get(it["intensity"], -9) for it in items])
     z = np.array([level.get(labels[it["id"]][1], 99) for it in items])
-
-    def mean(x):
-        return float(np.mean(x)) if len(x) else None
-
-    return {
-        "n": len(items),
-        "n_motion": int(motion.sum()),
-        "n_none": int((~motion).sum()),
-        "intent": mean((got == true)[motion]),
-        "acted": None,
-        "acted_accuracy": None,
-        "confident_wrong": None,
-        "none_held": mean((got == "none")[~motion]),
-        "exact": mean((z == z_true)[motion]),
-        "within_one": mean((np.abs(z - z_true) <= 1)[motion]),
-        "ece": None,
-    }
+    return _rates(motion, (got == true) & motion, z, z_true, got == "none")
 
 
 def risk_coverage(items: list[dict], preds: list) -> tuple[np.ndarray, np.ndarray]:
