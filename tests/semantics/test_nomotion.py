@@ -74,8 +74,9 @@ LEARNED = [
     "Last week the robot waved at every visitor; today nobody has come in yet.",
     "She is still filling in the form; give her a few more minutes before anything.",
 ]
-# No motion that the detector of the eighth session's head no longer holds (p 0.13: the frown reads as a cue to
-# comfort; "He is on a phone call with his bank, frowning at the screen." scores 0.99): jg.ground must still not act.
+# No motion that the detector retrained in the eighth session no longer holds (p 0.41 against its threshold 0.5375:
+# the frown reads as a cue to comfort; "He is on a phone call with his bank, frowning at the screen." scores 1.00):
+# jg.ground must still not act on it.
 UNSURE = ["He's in the middle of a phone call with his bank, frowning at the screen."]
 
 
