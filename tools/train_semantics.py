@@ -293,7 +293,10 @@ def calibrate_threshold(
     return 0.975
 
 
-def fit_cut_points(params, x, rows, grid=np.arange(-1.5, 1.501, 0.25)) -> tuple[np.ndarray, np.ndarray]:
+CUT_STEP = 0.25  # the step of fit_cut_points' grid of shifts (recalibrate recovers a shift from rounded meta by it)
+
+
+def fit_cut_points(params, x, rows, grid=np.arange(-1.5, 1.501, CUT_STEP)) -> tuple[np.ndarray, np.ndarray]:
     """The ordinal intensity's cut points fitted on dev, as temperature is for the intent: the trained cut points
     shifted (each by a value of ``grid``, kept increasing) to minimise the NLL of the intensities of ``rows``' motion
     texts. The intensity score itself is unchanged. Returns (fitted cut points ``(3,)``, shifts ``(3,)``)."""
@@ -714,7 +717,7 @@ def recalibrate(path: Path, dev, plain, sit, situation_files: dict) -> int:
     # the trained cut points: the shipped ones less the fitted shift (a step of fit_cut_points' grid; the meta's
     # copies are rounded to 4 decimals)
     cuts = head.meta["cut_points"]
-    shift = np.round((np.array(cuts["fitted on dev"]) - np.array(cuts["trained"])) / 0.25) * 0.25
+    shift = np.round((np.array(cuts["fitted on dev"]) - np.array(cuts["trained"])) / CUT_STEP) * CUT_STEP
     params = dict(head.params)
     params = calibration.with_cut_points(params, np.asarray(sh.thresholds(params), np.float64) - shift)
     xd, xp, xs = (features.head_inputs(head, [r["text"] for r in rows]) for rows in (dev, plain, sit))

@@ -509,9 +509,8 @@ def save_knn(path, table, labels, gate, meta: dict, intensities=None) -> Path:
 def intensity_onehot(intensities) -> np.ndarray:
     """One-hot rows ``(N, 4)`` float32 of intensity labels ``(N,)`` in 0..3; -1 (no label) gives a zero row, which
     votes for no intensity in :func:`knn_blend`."""
-    return np.eye(5, dtype=np.float32)[np.asarray(intensities)][
-        :, :4
-    ]  # -1 picks eye(5)'s last row: zero in the first 4
+    rows = np.eye(5, dtype=np.float32)[np.asarray(intensities)]  # -1 picks the last row: zero in the first 4
+    return rows[:, :4]
 
 
 def load_knn(head_digest: str, path=None) -> dict | None:
