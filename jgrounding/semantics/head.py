@@ -245,17 +245,20 @@ def knn_blend(knn: dict, p_intent, p_intensity, sentence, extras, k: int):
 
     ``p = (1 - a) p_head + a p_knn`` for the texts the table's gate lets through (a gate over the extras' columns:
     those must be zero; the shipped table's: the chosen part names no action, and no rejected part, log, system,
-    not-understood or background cue; an empty gate lets every text vote); other texts keep ``p_head``. ``p_knn``: the 17-way vote of the ``k`` training texts nearest
-    to the query (the text's tuned pooled vector the table was made of, :attr:`Head.knn_pool`), cosine, weighted by
-    exp((sim - best sim) / tau). With a ``temperature`` in the table, p^(1/T) renormalised, for every text. With an
-    intensity vote in the table (``onehot_z`` and its weight ``b``), the same neighbours' intensities vote too (those
-    labelled with one; a text none of whose neighbours is keeps the head's): ``p_z = (1 - b) p_z_head + b p_z_knn``
-    for the texts the gate lets through.
+    not-understood or background cue; an empty gate lets every text vote); other texts keep ``p_head``. ``p_knn``:
+    the 17-way vote of the ``k`` training texts nearest to the query (the text's tuned pooled vector the table was
+    made of, :attr:`Head.knn_pool`), cosine, weighted by exp((sim - best sim) / tau). With a ``temperature`` in the
+    table, p^(1/T) renormalised, for every text; with a ``situation_temperature``, the same again for the texts the
+    gate lets through (``tools.semantics_knn --situation-temperature``; the shipped table has none: the ninth
+    session's did not pass its ship rule). With an intensity vote in the table (``onehot_z`` and its weight ``b``),
+    the same neighbours' intensities vote too (those labelled with one; a text none of whose neighbours is keeps the
+    head's): ``p_z = (1 - b) p_z_head + b p_z_knn`` for the texts the gate lets through.
 
     Args: knn (:func:`load_knn`: ``table`` ``(N, 384)`` unit vectors, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``
     0/1 over the extras' columns that must be zero (all zero: every text votes), ``tau``, ``a``, and optionally
-    ``temperature``, and ``onehot_z`` ``(N, 4)`` (zero rows: no intensity label) with ``b``); p_intent ``(B, 17)``;
-    p_intensity ``(B, 4)``; sentence: the query ``(B, 384)``, unit vectors; extras ``(B, E)``.
+    ``temperature``, ``situation_temperature``, and ``onehot_z`` ``(N, 4)`` (zero rows: no intensity label) with
+    ``b``); p_intent ``(B, 17)``; p_intensity ``(B, 4)``; sentence: the query ``(B, 384)``, unit vectors; extras
+    ``(B, E)``.
     Returns (p_intent ``(B, 17)``, p_intensity ``(B, 4)``)."""
     knn = jax.tree.map(jnp.asarray, knn)  # numpy tables too (tools.semantics_knn, tests): indexed by traced indices
     situation = jnp.sum(jnp.abs(extras) * knn["gate"], 1) == 0
@@ -280,9 +283,16 @@ def knn_blend(knn: dict, p_intent, p_intensity, sentence, extras, k: int):
     # With a gate, a batch none of whose texts passes it skips the table.
     p, p_z = jax.lax.cond(jnp.any(situation), blend, lambda p: p, (p_intent, p_intensity))
     if "temperature" in knn:  # a temperature fitted on dev to the blended distribution (every text's)
-        q = jnp.exp(jnp.log(jnp.clip(p, 1e-12, 1.0)) / knn["temperature"])
-        p = q / jnp.sum(q, 1, keepdims=True)
+        p = _sharpen(p, knn["temperature"])
+    if "situation_temperature" in knn:  # one fitted on the situation hold-outs, for the texts the gate lets through
+        p = jnp.where(situation[:, None], _sharpen(p, knn["situation_temperature"]), p)
     return p, p_z
+
+
+def _sharpen(p, t):
+    """A temperature on distributions ``(B, C)``: p^(1/t), renormalised."""
+    q = jnp.exp(jnp.log(jnp.clip(p, 1e-12, 1.0)) / t)
+    return q / jnp.sum(q, 1, keepdims=True)
 
 
 @functools.partial(jax.jit, static_argnames=("knn_k", "knn_pool"))
@@ -517,8 +527,8 @@ def load_knn(head_digest: str, path=None) -> dict | None:
     """The nearest-neighbour table made for the head with parameters digest ``head_digest`` (None when the asset is
     missing or was made for another head): ``arrays``, the device arrays :func:`knn_blend` reads (``table``
     ``(N, 384)``, stored float16, ``onehot`` ``(N, 17)``, ``gate`` ``(E,)``, scalars ``tau`` and ``a``,
-    ``temperature`` when the meta's is not 1, and ``onehot_z`` ``(N, 4)`` with ``b`` when the table has an
-    intensity vote), and its ``meta`` (which pooled vector, k, the refitted threshold).
+    ``temperature`` and ``situation_temperature`` when the meta's are not 1, and ``onehot_z`` ``(N, 4)`` with ``b``
+    when the table has an intensity vote), and its ``meta`` (which pooled vector, k, the refitted threshold).
     ``ValueError`` when its digest does not match."""
     path = Path(path or KNN_ASSET)
     if not path.exists():
@@ -543,6 +553,11 @@ def load_knn(head_digest: str, path=None) -> dict | None:
             "a": np.float32(meta["a"]),
         }
         | ({"temperature": np.float32(meta["temperature"])} if meta.get("temperature", 1.0) != 1.0 else {})
+        | (
+            {"situation_temperature": np.float32(meta["situation_temperature"])}
+            if meta.get("situation_temperature", 1.0) != 1.0
+            else {}
+        )
         | (
             {"onehot_z": intensity_onehot(intensities), "b": np.float32(meta["b"])}
             if intensities is not None and meta.get("b", 0.0) > 0

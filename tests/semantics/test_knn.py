@@ -196,6 +196,49 @@ def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
     np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
 
 
+def test_a_situation_temperature_sharpens_only_the_texts_the_gate_lets_through(tmp_path):
+    """With a ``situation_temperature`` (tools.semantics_knn --situation-temperature), the gated texts' blend is
+    sharpened again; the texts the gate stops keep the blend (here the head) untouched. It round-trips through
+    save_knn / load_knn, and a meta without one (the shipped table's) loads none."""
+    table, labels, q, p = _random_vote(4, 40, 5)
+    extras = np.zeros((5, 2), np.float32)
+    extras[3, 0] = 1.0  # names an action: no vote, no situation temperature
+    knn = dict(table=table, onehot=np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], gate=np.array([1.0, 1.0]))
+    knn |= dict(tau=np.float32(0.05), a=np.float32(0.5), situation_temperature=np.float32(0.7))
+    pz = np.full((5, 4), 0.25, np.float32)
+    got = np.asarray(sh.knn_blend(knn, p, pz, q, extras, 5)[0])
+    blend = 0.5 * p + 0.5 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
+    want = semantics_knn.sharpen(blend, 0.7)
+    want[3] = p[3]
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    meta = dict(k=5, tau=0.05, a=0.5, head_digest="x")
+    path = sh.save_knn(
+        tmp_path / "t.npz", _unit_rows(4, 6), np.arange(6), np.zeros(2), meta | {"situation_temperature": 0.7}
+    )
+    assert float(sh.load_knn("x", path)["arrays"]["situation_temperature"]) == pytest.approx(0.7)
+    path = sh.save_knn(
+        tmp_path / "n.npz", _unit_rows(4, 6), np.arange(6), np.zeros(2), meta | {"situation_temperature": 1.0}
+    )
+    assert "situation_temperature" not in sh.load_knn("x", path)["arrays"]
+
+
+def test_the_situation_temperature_is_fitted_on_the_gated_hold_out_texts_only():
+    # Gated texts whose blend is right but underconfident: the fitted temperature sharpens (< 1); the texts the
+    # gate stops (confidently wrong here) do not enter the fit.
+    rng = np.random.default_rng(5)
+    intents = rng.integers(0, len(INTENTS), 60)
+    pm = np.full((60, sh.NUM_CLASSES), 0.3 / (sh.NUM_CLASSES - 1), np.float32)
+    pm[np.arange(60), intents] = 0.7
+    gated = np.arange(60) < 40
+    pm[~gated] = np.roll(pm[~gated], 1, axis=1)  # wrong, confidently: would call for a softer temperature
+    rows = [
+        dict(text=f"t{i}", intent=INTENTS[c], intensity="moderate", style="situation") for i, c in enumerate(intents)
+    ]
+    t = semantics_knn.fit_situation_temperature(pm, gated, rows)
+    assert t < 1.0
+    assert semantics_knn.fit_situation_temperature(pm, np.ones(60, bool), rows) > t
+
+
 def test_a_tighter_confident_wrong_budget_never_lowers_the_threshold_nor_adds_wrong_motions():
     rng = np.random.default_rng(0)
     rows = [{"intent": INTENTS[i % 16], "intensity": "moderate", "style": "situation"} for i in range(200)]

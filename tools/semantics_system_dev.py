@@ -1,0 +1,144 @@
+"""The whole grounding system on the dev sets, as users call it: ``jg.ground`` with its defaults (the head, the
+vote, the no-motion decision), one text at a time, scored with ``bench semantics``' metrics (ECE included).
+
+    python -m tools.semantics_system_dev --out /tmp/before.json             # the shipped system's dev figures
+    python -m tools.semantics_system_dev --compare /tmp/before.json        # ... and the ship rule against them
+
+The sets: v2 dev and the plainly worded dev split (what a head and a vote are chosen on), the blind situation
+hold-outs (:data:`tools.train_semantics.SITUATION_DEVS`, which calibrate the head and the vote's situation
+temperature) and the situation hold-out that nothing is fitted on (``assets/semantics_dev_situations.jsonl``,
+written from another brief). No test split or blind bench is read.
+
+The ship rule for a change to calibration (:data:`RULE`; the ninth session's situation temperature, written before
+its first run): on v2 dev and plain dev, no metric worse (intent, acted, intensity exact, no-motion held; confident
+wrong not higher; ECE of the two pooled not higher); on the unfitted hold-out a lower ECE, no lower intent and no more
+confident wrongs; on the blind hold-outs, confident wrong within ``tools.train_semantics.SITUATION_TARGET_WRONG``.
+A retrained head is compared the same way (the eighth session compared head + vote on dev by hand).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from experiments import bench_semantics as bs
+from tools import train_semantics as ts
+
+ROOT = ts.ROOT
+UNFITTED = "hold-out"  # the situation hold-out nothing is fitted on
+SETS = {
+    "v2 dev": (ts.DEV,),
+    "plain dev": (ts.DEV_PLAIN,),
+    "blind hold-outs": ts.SITUATION_DEVS,
+    UNFITTED: (ROOT / "assets" / "semantics_dev_situations.jsonl",),
+}
+HIGHER = ("intent", "acted", "exact", "none_held")  # none of these may fall on v2 dev or plain dev
+RULE = (
+    "v2 dev and plain dev: intent, acted, exact, no-motion held not lower, confident wrong not higher, their pooled ECE "
+    "not higher; the unfitted situation hold-out: ECE lower, intent not lower, confident wrong not higher; the blind "
+    f"hold-outs: confident wrong <= {ts.SITUATION_TARGET_WRONG}"
+)
+
+
+def read(paths) -> list[dict]:
+    return [row for path in paths for row in ts.read_jsonl(path)]
+
+
+def evaluate() -> dict:
+    """``bench semantics``' metrics of ``jg.ground`` on each dev set, and of v2 dev and plain dev pooled."""
+    import jgrounding as jg
+
+    out, pooled_items, pooled_preds = {}, [], []
+    for name, paths in SETS.items():
+        items = read(paths)
+        preds = [jg.ground(it["text"]) for it in items]
+        out[name] = bs.metrics(items, preds)
+        if name in ("v2 dev", "plain dev"):
+            pooled_items += items
+            pooled_preds += preds
+    out["v2 + plain dev"] = bs.metrics(pooled_items, pooled_preds)
+    return out
+
+
+def ship_rule(new: dict, old: dict) -> list[tuple[str, bool]]:
+    """Each clause of :data:`RULE` and whether ``new`` meets it against ``old`` (both :func:`evaluate`'s)."""
+    clauses = []
+    eps = 1e-9
+    for name in ("v2 dev", "plain dev"):
+        n, o = new[name], old[name]
+        for k in HIGHER:
+            if o[k] is not None:
+                clauses.append((f"{name} {k} {n[k]:.3f} >= {o[k]:.3f}", n[k] >= o[k] - eps))
+        clauses.append(
+            (
+                f"{name} confident wrong {n['confident_wrong']:.3f} <= {o['confident_wrong']:.3f}",
+                n["confident_wrong"] <= o["confident_wrong"] + eps,
+            )
+        )
+    n, o = new["v2 + plain dev"], old["v2 + plain dev"]
+    clauses.append((f"v2 + plain dev ECE {n['ece']:.3f} <= {o['ece']:.3f}", n["ece"] <= o["ece"] + eps))
+    n, o = new[UNFITTED], old[UNFITTED]
+    clauses.append((f"{UNFITTED} ECE {n['ece']:.3f} < {o['ece']:.3f}", n["ece"] < o["ece"] - eps))
+    clauses.append((f"{UNFITTED} intent {n['intent']:.3f} >= {o['intent']:.3f}", n["intent"] >= o["intent"] - eps))
+    clauses.append(
+        (
+            f"{UNFITTED} confident wrong {n['confident_wrong']:.3f} <= {o['confident_wrong']:.3f}",
+            n["confident_wrong"] <= o["confident_wrong"] + eps,
+        )
+    )
+    b = new["blind hold-outs"]["confident_wrong"]
+    clauses.append(
+        (
+            f"blind hold-outs confident wrong {b:.3f} <= {ts.SITUATION_TARGET_WRONG}",
+            b <= ts.SITUATION_TARGET_WRONG + eps,
+        )
+    )
+    return clauses
+
+
+def line(name: str, r: dict) -> str:
+    f = lambda v: "–" if v is None else f"{v:.3f}"  # noqa: E731
+    return (
+        f"  {name:16s} n {r['n']:4d} | intent {f(r['intent'])} acted {f(r['acted'])} wrong {f(r['confident_wrong'])}"
+        f" held {f(r['none_held'])} exact {f(r['exact'])} within1 {f(r['within_one'])} ECE {f(r['ece'])}"
+    )
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default=None, help="write the figures (JSON) here")
+    p.add_argument("--compare", default=None, help="a previous run's --out: apply the ship rule against it")
+    args = p.parse_args(argv)
+    from jgrounding.semantics import head as sh
+
+    head = sh.load()
+    knn = head.knn["meta"] if head.knn else {}
+    print(
+        f"jg.ground on the dev sets ({bs.machine()}): head {head.meta['params_digest']},"
+        f" vote {knn.get('digest', 'none')} (situation temperature {knn.get('situation_temperature', 1.0):.3f}),"
+        f" threshold {head.threshold:.3f}"
+    )
+    res = evaluate()
+    for name, r in res.items():
+        print(line(name, r))
+    if args.out:
+        from jgrounding.io import write_atomic
+
+        write_atomic(args.out, json.dumps(res, indent=1, sort_keys=True) + "\n")
+        print(f"wrote {args.out}")
+    if args.compare:
+        old = json.loads(Path(args.compare).read_text())
+        clauses = ship_rule(res, old)
+        print(f"ship rule against {args.compare} ({RULE}):")
+        for text, ok in clauses:
+            print(f"  {'yes' if ok else 'NO '} {text}")
+        passed = all(ok for _, ok in clauses)
+        print(f"ship rule: {'passed' if passed else 'failed'}")
+        return 0 if passed else 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
