@@ -10,7 +10,9 @@ frozen): situation-only texts, and sets written after the others had been read m
 ``assets/semantics_eval_w4/bench.jsonl`` and ``assets/semantics_eval_w5/bench.jsonl`` (no motion and contrast; w5
 all frozen), ``assets/semantics_eval_s10/bench.jsonl`` and ``assets/semantics_eval_s11/bench.jsonl`` (situations,
 all frozen), and two sets parked unread until the seventh session's change, ``assets/semantics_eval_s14/bench.jsonl``
-(situations) and ``assets/semantics_eval_w6/bench.jsonl`` (no motion and contrast), both all frozen; this script is the only reader of those files. Each
+(situations) and ``assets/semantics_eval_w6/bench.jsonl`` (no motion and contrast), both all frozen, and the same
+two kinds parked until the eighth session's change (``semantics_eval_s22``, ``semantics_eval_w9``) and the ninth's
+(``semantics_eval_s23``, ``semantics_eval_w10``); this script is the only reader of those files. Each
 blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
@@ -90,6 +92,8 @@ BENCH_V3 = {
     "w6 bench": ROOT / "assets" / "semantics_eval_w6" / "bench.jsonl",
     "s22 bench": ROOT / "assets" / "semantics_eval_s22" / "bench.jsonl",
     "w9 bench": ROOT / "assets" / "semantics_eval_w9" / "bench.jsonl",
+    "s23 bench": ROOT / "assets" / "semantics_eval_s23" / "bench.jsonl",
+    "w10 bench": ROOT / "assets" / "semantics_eval_w10" / "bench.jsonl",
 }
 OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
 REDUCERS = {
