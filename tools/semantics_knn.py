@@ -322,19 +322,8 @@ def main(argv=None) -> int:
         "situations+none": ((style == "situation") | (train_intent == sh.NONE)) & ~blind,
     }
     if args.write or args.chosen_only:
-        return write(
-            head,
-            x_train,
-            train_intent,
-            train_intensity,
-            tables,
-            x,
-            p_head,
-            scored,
-            base,
-            dry=not args.write,
-            situation_temperature=args.situation_temperature,
-        )
+        opts = dict(dry=not args.write, situation_temperature=args.situation_temperature)
+        return write(head, x_train, train_intent, train_intensity, tables, x, p_head, scored, base, **opts)
     gates = {
         "always": {n: np.ones(len(sets[n]), bool) for n in sets},
         "no motion words": {n: no_motion_words(x[n]) for n in sets},
