@@ -267,6 +267,8 @@ def main(argv=None) -> int:
         "decided through jg.ground (tools.semantics_system_dev)",
     )
     args = p.parse_args(argv)
+    if args.situation_temperature and not (args.write or args.chosen_only):
+        raise SystemExit("--situation-temperature goes with --write or --chosen-only (it fits the chosen variant's)")
     if args.head and args.write:
         raise SystemExit("--write builds the shipped head's table; drop --head (or use --chosen-only)")
     head = sh.load(args.head)

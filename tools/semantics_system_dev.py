@@ -62,39 +62,32 @@ def evaluate() -> dict:
     return out
 
 
+EPS = 1e-9  # ties count as not worse
+
+
+def _not_above(what: str, new: float, old: float) -> tuple[str, bool]:
+    return f"{what} {new:.3f} <= {old:.3f}", new <= old + EPS
+
+
+def _not_below(what: str, new: float, old: float) -> tuple[str, bool]:
+    return f"{what} {new:.3f} >= {old:.3f}", new >= old - EPS
+
+
 def ship_rule(new: dict, old: dict) -> list[tuple[str, bool]]:
     """Each clause of :data:`RULE` and whether ``new`` meets it against ``old`` (both :func:`evaluate`'s)."""
     clauses = []
-    eps = 1e-9
     for name in ("v2 dev", "plain dev"):
         n, o = new[name], old[name]
-        for k in HIGHER:
-            if o[k] is not None:
-                clauses.append((f"{name} {k} {n[k]:.3f} >= {o[k]:.3f}", n[k] >= o[k] - eps))
-        clauses.append(
-            (
-                f"{name} confident wrong {n['confident_wrong']:.3f} <= {o['confident_wrong']:.3f}",
-                n["confident_wrong"] <= o["confident_wrong"] + eps,
-            )
-        )
-    n, o = new["v2 + plain dev"], old["v2 + plain dev"]
-    clauses.append((f"v2 + plain dev ECE {n['ece']:.3f} <= {o['ece']:.3f}", n["ece"] <= o["ece"] + eps))
+        clauses += [_not_below(f"{name} {k}", n[k], o[k]) for k in HIGHER if o[k] is not None]
+        clauses.append(_not_above(f"{name} confident wrong", n["confident_wrong"], o["confident_wrong"]))
+    clauses.append(_not_above("v2 + plain dev ECE", new["v2 + plain dev"]["ece"], old["v2 + plain dev"]["ece"]))
     n, o = new[UNFITTED], old[UNFITTED]
-    clauses.append((f"{UNFITTED} ECE {n['ece']:.3f} < {o['ece']:.3f}", n["ece"] < o["ece"] - eps))
-    clauses.append((f"{UNFITTED} intent {n['intent']:.3f} >= {o['intent']:.3f}", n["intent"] >= o["intent"] - eps))
-    clauses.append(
-        (
-            f"{UNFITTED} confident wrong {n['confident_wrong']:.3f} <= {o['confident_wrong']:.3f}",
-            n["confident_wrong"] <= o["confident_wrong"] + eps,
-        )
-    )
+    clauses.append((f"{UNFITTED} ECE {n['ece']:.3f} < {o['ece']:.3f}", n["ece"] < o["ece"] - EPS))
+    clauses.append(_not_below(f"{UNFITTED} intent", n["intent"], o["intent"]))
+    clauses.append(_not_above(f"{UNFITTED} confident wrong", n["confident_wrong"], o["confident_wrong"]))
     b = new["blind hold-outs"]["confident_wrong"]
-    clauses.append(
-        (
-            f"blind hold-outs confident wrong {b:.3f} <= {ts.SITUATION_TARGET_WRONG}",
-            b <= ts.SITUATION_TARGET_WRONG + eps,
-        )
-    )
+    limit = ts.SITUATION_TARGET_WRONG
+    clauses.append((f"blind hold-outs confident wrong {b:.3f} <= {limit}", b <= limit + EPS))
     return clauses
 
 
