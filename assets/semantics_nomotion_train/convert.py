@@ -1,5 +1,6 @@
 """Convert a detector-only writer's raw files to training rows, once: ``python assets/semantics_nomotion_train/convert.py
-assets/semantics_nomotion_train/w7``.
+assets/semantics_nomotion_train/w7`` (a second argument names the output file instead of ``train.jsonl``: the
+no-motion dev set's ``dev.jsonl``, ``assets/semantics_dev_nomotion``).
 
 v3's conversion (``assets/semantics_eval_v3/split.py``'s ``rows``: ``nomotion_raw.jsonl`` and ``contrast_raw.jsonl``
 to ``{"id", "text", "intent", "intensity", "style"}`` rows, and ``"rejected"`` for contrast texts), every text to
@@ -16,5 +17,6 @@ HERE = Path(__file__).resolve().parent
 if __name__ == "__main__":
     folder = Path(sys.argv[1])
     rows = runpy.run_path(str(HERE.parent / "semantics_eval_v3" / "split.py"), run_name="v3_split")["rows"](folder)
-    (folder / "train.jsonl").write_text("".join(json.dumps(r, ensure_ascii=False) + "\n" for r in rows))
-    print(f"{len(rows)} texts to {folder / 'train.jsonl'}")
+    out = folder / (sys.argv[2] if len(sys.argv) > 2 else "train.jsonl")
+    out.write_text("".join(json.dumps(r, ensure_ascii=False) + "\n" for r in rows))
+    print(f"{len(rows)} texts to {out}")
