@@ -360,13 +360,22 @@ def chosen_motion(text: str, st: structure.Structure | None = None) -> str | Non
     return None
 
 
-def check(text: str, st: structure.Structure | None = None, vector=None, *, learned: bool = True) -> Hold | None:
+def check(
+    text: str,
+    st: structure.Structure | None = None,
+    vector=None,
+    *,
+    learned: bool = True,
+    learned_detector: Detector | None = None,
+) -> Hold | None:
     """A :class:`Hold` when the text calls for no motion (see the module docstring), else None: the rule first,
     then (with ``learned``) the detector on ``vector``, the text's sentence vector ``(384,)`` (None: computed here,
-    one encoder pass, only when the rule lets the text through); a chosen motion overrides either."""
+    one encoder pass, only when the rule lets the text through); a chosen motion overrides either.
+    ``learned_detector``: another detector than the shipped one (:func:`detector`), e.g. the shipped one at another
+    threshold (``tools.nomotion_frontier``)."""
     st = st or structure.spans(text)
     hold = rule(text, st)
-    if hold is None and learned and (d := detector()) is not None:
+    if hold is None and learned and (d := learned_detector or detector()) is not None:
         if vector is None:
             vectors = sentence_vectors([text])
             vector = None if vectors is None else vectors[0]
@@ -401,7 +410,15 @@ def rule(text: str, st: structure.Structure) -> Hold | None:
     return hold
 
 
-def apply(text: str, g: Grounding, st: structure.Structure | None = None, vector=None) -> Grounding:
+def apply(
+    text: str,
+    g: Grounding,
+    st: structure.Structure | None = None,
+    vector=None,
+    *,
+    learned: bool = True,
+    learned_detector: Detector | None = None,
+) -> Grounding:
     """``g`` held (``confident=False``, ``no_motion`` its kind, ``reason`` why) when :func:`check` holds ``text``;
     otherwise ``g`` unchanged. The intent and intensity stay the reducer's most likely ones. ``vector``: the
     text's sentence vector when the reducer computed it (the embedded backend), else :func:`check` computes it.
@@ -414,8 +431,9 @@ def apply(text: str, g: Grounding, st: structure.Structure | None = None, vector
     A held grounding's ``confidence`` is the reducer's p(m) times the probability that the text asks for a motion
     at all, ``1 - hold.p`` (0 for the rule's holds, one minus the detector's p for its own): how sure the whole
     decision is that the tuple is the motion to make, so a held text no longer reports the reducer's confidence
-    in a motion it was held from. ``scores`` keep the reducer's distribution."""
-    hold = check(text, st, vector)
+    in a motion it was held from. ``scores`` keep the reducer's distribution. ``learned``, ``learned_detector``: as
+    :func:`check`'s (the defaults are what every front end uses)."""
+    hold = check(text, st, vector, learned=learned, learned_detector=learned_detector)
     if hold is None:
         return g
     reason = f"{g.reason}; {hold.reason}" if hold.kind == LEARNED and not g.confident and g.reason else hold.reason

@@ -269,3 +269,29 @@ def test_cli_and_server_agree_on_a_no_motion_text(tmp_path):
                 assert "the text calls for no motion (learned detector" in reply["message"]
     finally:
         run.stop()
+
+
+def test_another_detector_or_threshold_is_one_argument_and_the_default_is_the_shipped_decision():
+    """tools.nomotion_frontier reads the decision at other thresholds through check/apply's ``learned_detector``: the
+    shipped one at its own threshold decides as the default does, at threshold 0 it holds every text no chosen
+    motion protects, above 1 it holds none (the rule still does)."""
+    import dataclasses
+
+    import jgrounding as jg
+    from jgrounding.semantics import embedded
+
+    d = nomotion.detector()
+    texts = [
+        LEARNED[0],
+        MOTION[0],
+        CONTRAST[0][0],
+        "Grandma dozing in her armchair, cat on her lap, rain on the window.",
+    ]
+    groundings, vectors = embedded.ground_embedded_vectors(texts)
+    for text, g, v in zip(texts, groundings, vectors):
+        same = nomotion.apply(text, g, vector=v, learned_detector=dataclasses.replace(d, threshold=d.threshold))
+        assert same == nomotion.apply(text, g, vector=v) == jg.ground(text)
+        never = nomotion.check(text, vector=v, learned_detector=dataclasses.replace(d, threshold=1.01))
+        assert never is None or never.kind != nomotion.LEARNED
+        always = nomotion.check(text, vector=v, learned_detector=dataclasses.replace(d, threshold=0.0))
+        assert (always is None) == bool(nomotion.chosen_motion(text)), text
