@@ -136,11 +136,9 @@ def figure(rows, path) -> None:
         "#34's goals on dev, the no-motion decision at each detector threshold (green: met; * shipped)", fontsize=10
     )
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(path)
+    from jgrounding.apps import plotting
+
+    plotting.save(fig, path)  # atomic, closes the figure
 
 
 def main(argv=None) -> int:
