@@ -30,27 +30,27 @@ NO_MOTION = sd.NO_MOTION_DEV
 OUT = bs.RESULTS / "nomotion_frontier"
 
 
-def groundings() -> dict[str, tuple[list[dict], list, list]]:
-    """Each dev set's items, and for each text the grounding and sentence vector ``jg.ground`` computes for it alone
-    before the no-motion decision (``ground_embedded_vectors([text])``, as :func:`jgrounding.semantics.ground`)."""
+def groundings(sets: dict[str, list[dict]]) -> dict[str, tuple[list[dict], list, list]]:
+    """Each set's items (``{name: items}``), and for each text the grounding and sentence vector ``jg.ground``
+    computes for it alone before the no-motion decision (``ground_embedded_vectors([text])``, as
+    :func:`jgrounding.semantics.ground`)."""
     from jgrounding.semantics import embedded
 
     out = {}
-    for name, paths in sd.SETS.items():
-        items = sd.read(paths)
+    for name, items in sets.items():
         pairs = [embedded.ground_embedded_vectors([it["text"]]) for it in items]
         out[name] = items, [g for (g,), _ in pairs], [None if v is None else v[0] for _, v in pairs]
     return out
 
 
-def decided(runs: dict, **options) -> dict[str, dict]:
+def decided(runs: dict, *, off: bool = False, **options) -> dict[str, dict]:
     """``bench semantics``' metrics of every set (and of :data:`tools.semantics_system_dev.POOLED`'s pools) after
-    :func:`jgrounding.semantics.nomotion.apply` with ``options`` (None: no decision)."""
+    :func:`jgrounding.semantics.nomotion.apply` with ``options`` (``off``: no decision, the groundings as they are)."""
     from jgrounding.semantics import nomotion
 
     preds = {}
     for name, (items, gs, vectors) in runs.items():
-        if options.get("off"):
+        if off:
             preds[name] = gs
         else:
             preds[name] = [nomotion.apply(it["text"], g, vector=v, **options) for it, g, v in zip(items, gs, vectors)]
@@ -152,7 +152,7 @@ def main(argv=None) -> int:
 
     head = sh.load()
     print(f"jg.ground's no-motion decision on the dev sets ({bs.machine()}): head {head.meta['params_digest']}")
-    rows = frontier(groundings())
+    rows = frontier(groundings({name: sd.read(paths) for name, paths in sd.SETS.items()}))
     text = table(rows)
     print(text)
     met = [label for label, r in rows if meets(r)]

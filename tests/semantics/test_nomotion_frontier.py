@@ -34,14 +34,7 @@ def test_the_table_marks_each_row_and_names_every_column():
 @pytest.fixture(scope="module")
 def small_runs():
     """Eight texts of each dev set, grounded as jg.ground grounds them."""
-    from jgrounding.semantics import embedded
-
-    runs = {}
-    for name, paths in sd.SETS.items():
-        items = sd.read(paths)[::40][:8]
-        pairs = [embedded.ground_embedded_vectors([it["text"]]) for it in items]
-        runs[name] = items, [g for (g,), _ in pairs], [v[0] for _, v in pairs]
-    return runs
+    return nf.groundings({name: sd.read(paths)[::40][:8] for name, paths in sd.SETS.items()})
 
 
 def test_the_shipped_row_is_what_jg_ground_gives_and_no_decision_holds_nothing(small_runs, monkeypatch):
