@@ -12,10 +12,15 @@ from __future__ import annotations
 import importlib
 import os
 
-# MuJoCo picks its OpenGL backend when it is imported. With no display, software OSMesa is the one
-# that renders on a CPU-only machine (EGL needs a GPU driver); a user's own MUJOCO_GL wins.
+# MuJoCo picks its OpenGL backend when it is imported (MuJoCo 4 imports its renderer with `import mujoco`). With no
+# display, software OSMesa is the one that renders on a CPU-only machine (EGL needs a GPU driver), so it is chosen
+# where its library is installed (scripts/install_system.sh); without it, importing MuJoCo would fail, so nothing is
+# chosen and rendering falls back to matplotlib. A user's own MUJOCO_GL wins.
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-    os.environ["MUJOCO_GL"] = "osmesa"
+    import ctypes.util
+
+    if ctypes.util.find_library("OSMesa"):
+        os.environ["MUJOCO_GL"] = "osmesa"
 
 from jgrounding import safety
 from jgrounding.actuation import splines

@@ -10,9 +10,12 @@ Two engines behind one function, :func:`rollout`, and one choice between them, `
 - ``"mjx"``: ``jit(vmap(lax.scan))`` over control steps with the physics substeps inside, compiled
   once per chunk size (padded power-of-two chunks, at most :data:`MJX_CHUNK`). It is the engine that scales on
   accelerators; on CPU it serves as a check (the two agree to float precision).
-- ``"auto"``: ``"mjx"`` when JAX's default backend is an accelerator (GPU/TPU), else ``"native"``
-  (:func:`resolve_engine`). Every caller in the project (ablation, screened sampling, physics-aware
-  training) goes through it, so one flag decides the engine everywhere.
+- ``"mjx-warp"``: the same program on MJX's Warp implementation (MuJoCo Warp's kernels; an NVIDIA GPU, or the
+  CPU through Warp's LLVM backend, where it serves as a check: it agrees with native to float precision).
+- ``"auto"``: ``"native"`` on the CPU; on an accelerator, the faster of ``"mjx"`` and ``"mjx-warp"``, measured
+  once per device and stack on the shape the ablation runs and cached (:func:`resolve_engine`). Every caller in
+  the project (ablation, screened sampling, physics-aware training) goes through it, so one flag decides the
+  engine everywhere.
 
 Conventions (fixed; the library, the ablation and the CLI rely on them): the trunk hangs from its
 base at ``BASE_HEIGHT``; the user stands in front at +x; tendon 0 faces the user (+x), 1 the robot's
@@ -51,28 +54,33 @@ from jgrounding.sim.measures import (  # noqa: F401  (re-exported: the simulator
 )
 from jgrounding.sim.native import load_model, rollout_native, validate_actuation  # noqa: F401
 
-ENGINES = ("auto", "native", "mjx")
+ENGINES = ("auto", "native", "mjx", "mjx-warp")
 MJX_CHUNK = 1024  # the largest padded chunk MJX runs (evaluation.physics rolls out batches of this size)
 
 
 def resolve_engine(engine: str = "auto") -> str:
-    """``"auto"`` -> ``"mjx"`` on an accelerator backend (GPU/TPU), ``"native"`` on CPU; other names pass
-    through after validation."""
+    """``"auto"`` -> ``"native"`` on the CPU; on an accelerator the engine of higher measured throughput among
+    ``"mjx"`` and ``"mjx-warp"`` (:func:`jgrounding.sim.engines.fastest`: measured once per device and stack, then
+    read from the cache). Other names pass through after validation."""
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
     if engine != "auto":
         return engine
     import jax
 
-    return "native" if jax.default_backend() == "cpu" else "mjx"
+    if jax.default_backend() == "cpu":
+        return "native"
+    from jgrounding.sim import engines
+
+    return engines.fastest()
 
 
 def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
     """Simulate actuation ``(T, 4)`` or ``(B, T, 4)`` in [0, 1]; returns a batch-first :class:`Rollout`.
 
-    ``engine``: ``"auto"`` (default: native on CPU, MJX on an accelerator), ``"native"`` (MuJoCo,
-    multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded power-of-two
-    chunks of at most :data:`MJX_CHUNK`). ``contact=False`` removes the user's contact geometry
+    ``engine``: ``"auto"`` (default: native on CPU, the faster MJX implementation on an accelerator), ``"native"``
+    (MuJoCo, multi-threaded ``mujoco.rollout``), ``"mjx"`` or ``"mjx-warp"`` (compiled batched rollouts on MJX's
+    JAX or Warp implementation, padded power-of-two chunks of at most :data:`MJX_CHUNK`). ``contact=False`` removes the user's contact geometry
     (distances are still measured).
     """
     engine = resolve_engine(engine)
@@ -83,7 +91,10 @@ def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
 
     # Padded chunks of the next power of two (at most MJX_CHUNK): a handful of compiled programs serve
     # every batch size.
-    return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, 1 << (u.shape[0] - 1).bit_length()))
+    chunk = min(MJX_CHUNK, 1 << (u.shape[0] - 1).bit_length())
+    if engine == "mjx-warp":
+        return mjx.rollout_warp(u, contact, chunk=chunk)
+    return mjx.rollout_mjx(u, contact, chunk=chunk)
 
 
 def margins(u, *, engine: str = "auto") -> np.ndarray:

@@ -1,4 +1,6 @@
-"""MJX engine for :func:`jgrounding.sim.rollout`: ``jit(vmap(scan over physics steps))``.
+"""MJX engines for :func:`jgrounding.sim.rollout`: ``jit(vmap(scan over physics steps))`` on MJX's JAX
+implementation (engine ``"mjx"``) or on its Warp implementation (engine ``"mjx-warp"``: MuJoCo Warp's kernels,
+called from the same JAX program through XLA's foreign-function interface).
 
 Each control step holds the command for ``SUBSTEPS`` physics steps (one flat ``lax.scan`` over every physics
 step); the backbone, tendon lengths and the normal force on the user are read at the end of each control
@@ -9,8 +11,9 @@ the sum of the contact normal forces (every contact in the model involves the us
 not collide with each other), which is what the native engine's ``touch`` sensor over the user
 measures (checked equal to float precision). Reading MJX's own touch sensor instead would fail on the
 contact-free model (MJX 3.3.7 cannot evaluate a touch sensor when the model has no contact pairs) and
-costs a ray cast per contact and step. One
-compiled function per (batch size, contact) pair, cached; call :func:`enable_compilation_cache`
+costs a ray cast per contact and step. The Warp
+implementation keeps the model's sensors and reads them as the native engine does (MuJoCo Warp evaluates the
+``touch`` sensor). One compiled function per (batch size, contact, implementation), cached; call :func:`enable_compilation_cache`
 (done by the experiments and the test suite) to make compilation a one-time cost across processes.
 """
 
@@ -31,7 +34,7 @@ from mujoco.mjx._src import support as mjx_support  # contact_force_dim: pyramid
 
 from jgrounding import io
 from jgrounding.sim import measures
-from jgrounding.sim.native import load_model
+from jgrounding.sim.native import from_sensordata, load_model
 
 
 def enable_compilation_cache(path: str | Path | None = None) -> None:
@@ -42,12 +45,47 @@ def enable_compilation_cache(path: str | Path | None = None) -> None:
     io.enable_compilation_cache(path, min_compile_secs=1.0)
 
 
-@functools.lru_cache(maxsize=2)
-def _model(contact: bool):
+IMPLS = {"mjx": "jax", "mjx-warp": "warp"}  # engine name -> MJX implementation
+# MuJoCo Warp allocates contacts for all worlds of a batch and constraint rows per world up front. The trunk touches
+# the user through CONTACT_SEGMENTS capsule pairs (at most 2 contacts each); each contact has 4 pyramid rows.
+WARP_CONTACTS_PER_TRUNK = 16
+WARP_ROWS_PER_TRUNK = 128
+
+
+def warp_unavailable() -> str | None:
+    """Why MJX's Warp implementation cannot run here, or None when it can. Warp runs on an NVIDIA GPU (CUDA) or,
+    much slower, on the CPU through its LLVM backend; it needs the ``warp-lang`` package (``make install``, or
+    ``pip install 'jgrounding[warp]'``)."""
+    try:
+        import warp
+
+        warp.config.quiet = True  # no banner or per-kernel log lines on the terminal
+    except ImportError as e:
+        return f"warp-lang is not installed ({e}); install it with `pip install 'jgrounding[warp]'`"
+    if jax.default_backend() == "cpu":
+        return None
+    try:
+        jax.devices("cuda")
+    except RuntimeError:
+        kinds = ", ".join(sorted({d.device_kind for d in jax.devices()}))
+        return f"Warp runs on NVIDIA GPUs (CUDA) or on the CPU, and JAX's devices here are {kinds}"
+    return None
+
+
+@functools.lru_cache(maxsize=4)
+def _model(contact: bool, impl: str = "jax"):
     m = copy.copy(load_model(None, contact))  # a copy: the cached native model keeps its sensors
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+    if impl == "jax":
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
     body_ids = np.array([m.body(f"seg{i}").id for i in range(measures.NUM_SEGMENTS)])
-    return m, mjx.put_model(m), body_ids, m.site("tip").id
+    mx = mjx.put_model(m, impl=impl)
+    if impl == "warp":  # MuJoCo Warp warns on every step that ends at the solver's iteration limit (the model's
+        # 4 iterations, as in native MuJoCo, which is silent about it); keep its warnings of buffer overflows.
+        from mujoco.mjx.third_party.mujoco_warp import OverflowType
+
+        warn = int(OverflowType.ALL & ~OverflowType.ITERATIONS)
+        mx = mx.replace(opt=mx.opt.replace(_impl=mx.opt._impl.replace(warn_overflow=warn)))
+    return m, mx, body_ids, m.site("tip").id
 
 
 def _user_force(mx, d) -> jax.Array:
@@ -73,6 +111,24 @@ def compiler_options() -> dict | None:
 
 
 @functools.lru_cache(maxsize=8)
+def _compiled_warp(contact: bool, chunk: int):
+    m, mx, _, _ = _model(contact, "warp")
+    d0 = mjx.make_data(
+        m, impl="warp", naconmax=WARP_CONTACTS_PER_TRUNK * chunk, njmax=WARP_ROWS_PER_TRUNK
+    )  # naconmax counts every world of the batch
+
+    def one(u):  # u: (T, 4); the model's sensors, read at the end of each control step
+        def physics_step(d, ctrl):
+            d = mjx.step(mx, d.replace(ctrl=ctrl))
+            return d, d.sensordata
+
+        _, out = jax.lax.scan(physics_step, d0, jnp.repeat(u, measures.SUBSTEPS, axis=0))
+        return out[measures.SUBSTEPS - 1 :: measures.SUBSTEPS]
+
+    return jax.jit(jax.vmap(one))
+
+
+@functools.lru_cache(maxsize=8)
 def _compiled(contact: bool):
     m, mx, body_ids, tip_id = _model(contact)
 
@@ -92,6 +148,24 @@ def _compiled(contact: bool):
         return jax.tree.map(lambda x: x[measures.SUBSTEPS - 1 :: measures.SUBSTEPS], out)
 
     return jax.jit(jax.vmap(one), compiler_options=compiler_options())
+
+
+def rollout_warp(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:
+    """``(B, T, 4)`` validated commands -> :class:`measures.Rollout` via MJX's Warp implementation (float32), in
+    padded chunks of ``chunk`` (default: the whole batch). Raises ``RuntimeError`` naming the reason where Warp
+    cannot run (:func:`warp_unavailable`)."""
+    why = warp_unavailable()
+    if why:
+        raise RuntimeError(f'engine "mjx-warp" cannot run here: {why}; valid engines here: auto, native, mjx')
+    u = jnp.asarray(u, jnp.float32)
+    chunk = chunk or u.shape[0]
+    fn = _compiled_warp(contact, chunk)
+    outs = []
+    for i in range(0, u.shape[0], chunk):
+        part = u[i : i + chunk]
+        pad = chunk - part.shape[0]
+        outs.append(np.asarray(jax.device_get(fn(jnp.pad(part, ((0, pad), (0, 0), (0, 0))))))[: chunk - pad])
+    return from_sensordata(np.concatenate(outs).astype(np.float64))
 
 
 def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:

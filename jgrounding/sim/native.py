@@ -18,6 +18,15 @@ _SENSOR_TENDON = slice(3 * NUM_POINTS, 3 * NUM_POINTS + 4)
 _SENSOR_TOUCH = 3 * NUM_POINTS + 4
 
 
+def from_sensordata(sensordata: np.ndarray) -> Rollout:
+    """The trunk model's sensors ``(B, T, nsensordata)`` read at the end of each control step -> :class:`Rollout`:
+    the backbone's frame positions, the four tendon lengths and the touch sensor over the user, in that order (what
+    ``jgrounding/sim/model.py`` declares). The native engine and MJX's Warp engine both read this way."""
+    batch, steps = sensordata.shape[:2]
+    backbone = sensordata[..., : 3 * NUM_POINTS].reshape(batch, steps, NUM_POINTS, 3)
+    return finish_rollout(backbone, sensordata[..., _SENSOR_TENDON], sensordata[..., _SENSOR_TOUCH])
+
+
 @functools.lru_cache(maxsize=4)
 def load_model(path: str | None = None, contact: bool = True) -> mujoco.MjModel:
     """The trunk MjModel: ``jgrounding/assets/trunk.xml`` by default; ``contact=False`` drops user contact."""
@@ -66,9 +75,7 @@ def rollout_native(u: np.ndarray, contact: bool) -> Rollout:
     from mujoco import rollout as mj_rollout
 
     model, data, state0 = _native_workers(contact)
-    batch, steps = u.shape[:2]
+    batch = u.shape[0]
     control = np.repeat(u, SUBSTEPS, axis=1)  # control held over the physics substeps
     _, sensordata = mj_rollout.rollout(model, data if batch > 1 else data[0], np.tile(state0, (batch, 1)), control)
-    sensordata = sensordata[:, SUBSTEPS - 1 :: SUBSTEPS]  # end of each control step
-    backbone = sensordata[..., : 3 * NUM_POINTS].reshape(batch, steps, NUM_POINTS, 3)
-    return finish_rollout(backbone, sensordata[..., _SENSOR_TENDON], sensordata[..., _SENSOR_TOUCH])
+    return from_sensordata(sensordata[:, SUBSTEPS - 1 :: SUBSTEPS])  # end of each control step

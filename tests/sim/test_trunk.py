@@ -53,8 +53,36 @@ def test_reaching_the_user_makes_gentle_contact_and_a_jump_is_infeasible():
 def test_auto_engine_is_native_on_cpu():
     import jax
 
-    assert sim.resolve_engine("auto") == ("native" if jax.default_backend() == "cpu" else "mjx")
-    assert sim.resolve_engine("mjx") == "mjx"
+    if jax.default_backend() == "cpu":
+        assert sim.resolve_engine("auto") == "native"
+    else:
+        assert sim.resolve_engine("auto") in ("mjx", "mjx-warp")
+    assert sim.resolve_engine("mjx") == "mjx" and sim.resolve_engine("mjx-warp") == "mjx-warp"
+
+
+def test_mjx_warp_is_refused_with_its_reason_where_warp_cannot_run(tmp_path):
+    """Without warp-lang (hidden from the import system in a fresh process), engine "mjx-warp" stops before any
+    work with an error that says why and names the engines that can run."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.modules['warp'] = None\n"
+        "import numpy as np\nfrom jgrounding import sim\n"
+        "try:\n    sim.rollout(np.zeros((2, 150, 4)), engine='mjx-warp')\n"
+        "except RuntimeError as e:\n    print(e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert 'engine "mjx-warp" cannot run here: warp-lang is not installed' in out.stdout, out.stderr[-2000:]
+    assert "valid engines here: auto, native, mjx" in out.stdout
+
+
+def test_probe_commands_are_valid_and_varied():
+    from jgrounding.sim import engines
+
+    u = engines.probe_commands(8, 150)
+    assert u.shape == (8, 150, 4) and u.min() >= 0 and u.max() <= 1
+    assert np.abs(u[0] - u[1]).max() > 0.1  # the batch is not one trajectory repeated
 
 
 def test_features_cover_the_shape_vocabulary():
@@ -105,7 +133,7 @@ def test_contact_pruning_is_exact():
 
 
 def test_unknown_engine():
-    with pytest.raises(ValueError, match="native, mjx"):
+    with pytest.raises(ValueError, match="native, mjx, mjx-warp"):
         sim.rollout(np.zeros((150, 4)), engine="bullet")
 
 
@@ -133,3 +161,28 @@ def test_mjx_agrees_with_native(contact):
     else:
         assert (a.contact_force == 0).all() and (b.contact_force == 0).all()
         assert b.user_distance[0].min() < 0  # without contact geometry the trunk passes into the user
+
+
+@pytest.mark.slow
+def test_mjx_warp_agrees_with_native_on_the_cpu():
+    """The Warp engine is plumbed through jg.sim.rollout: on the CPU (Warp's LLVM backend) it gives native MuJoCo's
+    rollout, sensors included, to float32 precision, for a batch that is not a chunk size (padding)."""
+    from jgrounding.sim import engines
+
+    u = engines.probe_commands(3, 150)
+    u[0] = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None] * np.array([1.0, 0, 0, 0])  # presses on the user
+    a, b = sim.rollout(u, engine="mjx-warp"), sim.rollout(u, engine="native")
+    assert b.contact_force[0].max() > 0.05
+    err = np.linalg.norm(a.backbone - b.backbone, axis=-1)
+    assert err.max() < 1e-3  # 1 mm over the whole 5 s (float32 against float64; MJX's JAX engine: 5 mm)
+    np.testing.assert_allclose(a.tendon_length, b.tendon_length, atol=5e-4)
+    np.testing.assert_allclose(a.contact_force, b.contact_force, atol=0.02, rtol=0.05)
+    assert sim.feasible(a).tolist() == sim.feasible(b).tolist()
+
+
+def test_engine_choice_measures_each_engine():
+    """The measurement behind engine "auto" on an accelerator times every engine it is given on the same batch."""
+    from jgrounding.sim import engines
+
+    rates = engines.measure(("native",), batch=4, steps=30)
+    assert set(rates) == {"native"} and rates["native"] > 0
