@@ -62,6 +62,14 @@ m = mujoco.MjModel.from_xml_string(tm.build_xml(contact=contact, contact_segment
 m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
 mx = mjx.put_model(m)
 d = mjx.make_data(mx)
+if what.startswith("chunk"):  # the rollout program of jgrounding.sim.mjx, as engine "mjx" compiles it
+    from jgrounding.sim import mjx as trunk_mjx
+    t = time.perf_counter()
+    lowered = trunk_mjx.lower_rollout(int(what[5:]), contact)
+    t1 = time.perf_counter()
+    lowered.compile()
+    print(t1 - t, time.perf_counter() - t1, float("nan"))
+    raise SystemExit(0)
 if what == "step":
     fn = jax.jit(mjx.step, compiler_options=opts)
 elif what in ("nested", "flat"):  # a whole rollout of 2 trunks, 150 control steps x 4 substeps, two program shapes
@@ -98,6 +106,19 @@ steps = {"step": 1, "nested": 2 * 600, "flat": 2 * 600}.get(what, 4 * 64)
 print(t1 - t, t2 - t1, 20 * steps / (time.perf_counter() - t3))
 """
 COMPILE_VARIANTS = (  # (label, contact, pairs, what[, "xla-default": without jgrounding.sim.mjx.compiler_options])
+    (
+        f'the ablation\'s chunk: engine "mjx" (jgrounding.sim.mjx), vmap({sim.MJX_CHUNK}) of one flat scan of 600 '
+        "physics steps, shipped model",
+        "1",
+        str(tm.CONTACT_SEGMENTS),
+        f"chunk{sim.MJX_CHUNK}",
+    ),
+    (
+        "the same program for a chunk of 256 (bench trunk's chunk)",
+        "1",
+        str(tm.CONTACT_SEGMENTS),
+        "chunk256",
+    ),
     ("no contact pairs, single step", "0", "0", "step"),
     (f"{tm.CONTACT_SEGMENTS} pairs (shipped model), single step", "1", str(tm.CONTACT_SEGMENTS), "step"),
     (
@@ -135,9 +156,11 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what[, "xla-default": without jg
 COMPILE_TIMEOUT_S = 300  # a variant's process (import, trace, compile, 20 warm calls) is stopped after this
 
 
-def compile_probe() -> list[str]:
+def compile_probe(only: str | None = None) -> list[str]:
     lines = ["| MJX model variant | trace + lower (s) | XLA compile (s) | warm physics steps/s |", "|---|---|---|---|"]
     for label, *argv in COMPILE_VARIANTS:
+        if only and only not in label:
+            continue
         try:
             out = subprocess.run(
                 [sys.executable, "-c", _PROBE, *argv],
@@ -152,7 +175,7 @@ def compile_probe() -> list[str]:
             print(lines[-1], flush=True)
             continue
         trace, comp, rate = (float(x) for x in out.stdout.split()[-3:]) if out.returncode == 0 else (float("nan"),) * 3
-        lines.append(f"| {label} | {trace:.1f} | {comp:.1f} | {rate:,.0f} |")
+        lines.append(f"| {label} | {trace:.1f} | {comp:.1f} | {f'{rate:,.0f}' if np.isfinite(rate) else '—'} |")
         print(lines[-1], flush=True)
     return lines
 
@@ -215,6 +238,7 @@ def main(argv=None) -> int:
     p.add_argument("--batches", default="64,256,1920")
     p.add_argument("--chunk", type=int, default=256)
     p.add_argument("--compile", action="store_true", help="measure where MJX compile time goes, then exit")
+    p.add_argument("--only", help="with --compile: only the variants whose label contains this text")
     p.add_argument(
         "--bisect",
         action="store_true",
@@ -237,14 +261,15 @@ def main(argv=None) -> int:
 
         from experiments.bench_sample import cpu_model, peak_gflops
 
-        lines = compile_probe()
+        lines = compile_probe(args.only)
         lines.append(
             f"\nCold compiles, no persistent cache, jax {jax.__version__}, MuJoCo/MJX {mujoco.__version__}, "
             f"{cpu_model()}, {peak_gflops()[1]}, XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}, load average "
             f"{os.getloadavg()[0]:.2f}; sensors disabled as in jgrounding.sim.mjx; every row but the one that says "
             "otherwise compiled with jgrounding.sim.mjx.compiler_options()."
         )
-        out = ROOT / "results" / f"bench_trunk_compile_jax{jax.__version__}.md"
+        suffix = "" if not args.only else "_" + "".join(c if c.isalnum() else "-" for c in args.only)[:40]
+        out = ROOT / "results" / f"bench_trunk_compile_jax{jax.__version__}{suffix}.md"
         write_atomic(out, "\n".join(lines) + "\n")
         print(f"wrote {out}")
         return 0

@@ -150,6 +150,12 @@ def _compiled(contact: bool):
     return jax.jit(jax.vmap(one), compiler_options=compiler_options())
 
 
+def lower_rollout(batch: int, contact: bool = True):
+    """The compiled-to-be MJX rollout program for a chunk of ``batch`` trunks, traced and lowered (``jax.stages.
+    Lowered``): what :func:`rollout_mjx` compiles, for measuring its compile time (``.compile()``)."""
+    return _compiled(contact).lower(jnp.zeros((batch, measures.NUM_STEPS, measures.NUM_CHANNELS), jnp.float32))
+
+
 def rollout_warp(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:
     """``(B, T, 4)`` validated commands -> :class:`measures.Rollout` via MJX's Warp implementation (float32), in
     padded chunks of ``chunk`` (default: the whole batch). Raises ``RuntimeError`` naming the reason where Warp

@@ -61,7 +61,7 @@ def validate_actuation(u) -> np.ndarray:
 @functools.lru_cache(maxsize=2)
 def _native_workers(contact: bool):
     model = load_model(None, contact)
-    nthread = max(1, min(os.cpu_count() or 1, 8))
+    nthread = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)  # every core
     data = [mujoco.MjData(model) for _ in range(nthread)]
     init = mujoco.MjData(model)
     mujoco.mj_forward(model, init)
