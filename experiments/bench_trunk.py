@@ -31,7 +31,7 @@ from jgrounding import load_library, sim
 from jgrounding.evaluation import physics
 from jgrounding.io import write_atomic
 from jgrounding.sim import mjx as trunk_mjx
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 
 ROOT = Path(__file__).resolve().parent.parent
 _CACHED = (
@@ -54,7 +54,7 @@ def _first_and_warm(u, chunk):
 _PROBE = """
 import sys, time, jax, mujoco
 from mujoco import mjx
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim.mjx import compiler_options
 contact, pairs, what = sys.argv[1] == "1", int(sys.argv[2]), sys.argv[3]
 opts = None if sys.argv[4:] == ["xla-default"] else compiler_options()

@@ -18,7 +18,7 @@ import numpy as np
 
 from jgrounding import safety, sim
 from jgrounding.apps.plotting import TENDON_COLORS, TENDON_LABELS, plt, save
-from jgrounding.sim import model as trunk_model
+from jgrounding.sim import mjcf as trunk_model
 from jgrounding.sim import render
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"

@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from jgrounding import sim
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 
 log = logging.getLogger(__name__)
 WIDTH, HEIGHT = 480, 360
