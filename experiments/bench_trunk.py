@@ -30,8 +30,8 @@ import numpy as np
 from jgrounding import load_library, sim
 from jgrounding.evaluation import physics
 from jgrounding.io import write_atomic
-from jgrounding.sim import mjx as trunk_mjx
 from jgrounding.sim import mjcf as tm
+from jgrounding.sim import mjx as trunk_mjx
 
 ROOT = Path(__file__).resolve().parent.parent
 _CACHED = (
