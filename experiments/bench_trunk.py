@@ -157,7 +157,7 @@ def compile_probe() -> list[str]:
     return lines
 
 
-# The compile regression's bisection (issue #36, docs/versions.md): jit(mjx.step) of the shipped trunk.xml compiled
+# The compile regression's bisection (docs/versions.md): jit(mjx.step) of the shipped trunk.xml compiled
 # cold in a venv per (jax, MuJoCo/MJX) stack, with XLA's defaults and with jgrounding.sim.mjx.compiler_options().
 BISECT_STACKS = (("0.6.2", "3.3.7"), ("0.7.0", "3.3.7"), ("0.7.1", "3.3.7"), ("0.10.2", "3.17.0"))
 _STEP_PROBE = """

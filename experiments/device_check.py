@@ -1,4 +1,4 @@
-"""The prepared accelerator check (issue #25): ``bash scripts/device_check.sh [--tiny] [--out PATH]``.
+"""The prepared accelerator check: ``bash scripts/device_check.sh [--tiny] [--out PATH]``.
 
 On one GPU in at most 8 minutes, writes results/gpu.md with, from one run:
 
