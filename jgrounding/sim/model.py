@@ -2,13 +2,15 @@
 
 The model itself is built by :func:`jgrounding.sim.mjcf.build_xml` (geometry, tendons, actuators, the user; see
 that module). This module is only the command: the package imports :mod:`jgrounding.sim.mjcf`, never this one,
-so running it as a script does not import the module it runs a second time.
+so running it as a script does not import the module it runs a second time. The builder's names stay importable
+from here (``from jgrounding.sim import model``) for code written when they lived in this module.
 """
 
 from __future__ import annotations
 
 import argparse
 
+from jgrounding.sim.mjcf import *  # noqa: F403  (the builder's names, for code that imports them from here)
 from jgrounding.sim.mjcf import DEFAULT_PATH, NUM_SEGMENTS, build_xml
 
 
