@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export JAX_PLATFORMS ?= cpu
 export PYTHONUNBUFFERED := 1
 
-.PHONY: install lint test test-slow test-all test-fast test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library clean
+.PHONY: install lint test test-slow test-all test-fast test-wheel wheel ablation sweeps generator ship bench bench-peer device-check library docs clean
 
 $(STAMP): requirements.txt constraints.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -102,6 +102,11 @@ device-check: install
 
 library: install
 	$(PY) -m tools.build_library
+
+# The docs site (mkdocs.yml): docs/ with README.md as its index and the API reference from the docstrings, built
+# strict (a warning, a broken link, fails) into site/; nothing is published.
+docs: install
+	$(VENV)/bin/mkdocs build --strict
 
 clean:
 	rm -rf $(VENV) $(PEER_VENV) .pytest_cache .hypothesis

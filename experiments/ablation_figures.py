@@ -16,7 +16,7 @@ from jgrounding import sim
 from jgrounding.apps.plotting import TENDON_COLORS, plot_tendons, plt, save
 from jgrounding.evaluation import metrics
 from jgrounding.generators import methods
-from jgrounding.sim import model as sim_model
+from jgrounding.sim import mjcf as sim_model
 from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_index
 
 FIG4_TUPLES = (("embracing", "emphatic"), ("withdrawal", "moderate"))

@@ -223,7 +223,7 @@ def distribution_markdown(res: AblationResult) -> str:
 
 
 def time_method(res: AblationResult) -> str:
-    """How the run measured Table II's Time (interleaved since issue #37)."""
+    """How the run measured Table II's Time (interleaved, or in a run recorded before that, the median alone)."""
     rounds = max((len(r.time_rounds_ms) for r in res.rows.values()), default=0)
     if not rounds:
         return "each method timed on its own, one after the other: median over calls (no interval)."
@@ -235,7 +235,7 @@ def time_method(res: AblationResult) -> str:
 
 
 def time_cell(r) -> str:
-    """Table II's Time cell: the median and its interval (a run before issue #37: the median alone)."""
+    """Table II's Time cell: the median and its interval (an older run's record: the median alone)."""
     if len(r.time_interval_ms) == 2:
         return f"{r.time_ms:.3f} [{r.time_interval_ms[0]:.3f}, {r.time_interval_ms[1]:.3f}]"
     return f"{r.time_ms:.3f}"

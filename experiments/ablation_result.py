@@ -23,7 +23,7 @@ from jgrounding.config import Config
 from jgrounding.evaluation.physics import ShapeTolerance
 from jgrounding.io import write_atomic
 
-SCHEMA = 2  # results/ablation.json's version; 1 (no "schema" field) was the dict of string keys before issue #33
+SCHEMA = 2  # results/ablation.json's version; 1 (no "schema" field) was a dict of string keys
 REGENERATE = "make ablation (python -m experiments.ablation [--out DIR])"
 MeanStd = tuple[float, float]  # (mean, std) over training seeds, sampling keys or replay draws
 _NAN = (float("nan"), float("nan"))
@@ -75,7 +75,7 @@ class Row:
     distribution: Scores | None  # None: the library has no evaluation set
     physics: Physics
     # Per-round medians of the interleaved timing (latency.interleaved_ms: every method timed in each round,
-    # in a fresh order) and the distribution-free 95% interval of their median; () in runs before issue #37.
+    # in a fresh order) and the distribution-free 95% interval of their median; () in runs recorded before that.
     time_rounds_ms: tuple[float, ...] = ()
     time_interval_ms: tuple[float, ...] = ()
 
@@ -100,7 +100,7 @@ class Timing:
     distribution_references_s: float | None  # benchmark v3 reference rows; None: no evaluation set
     physics_s: float  # every rollout: library, fine-tuning screens, rows and references
     run_s: float  # the whole run
-    latency_s: float | None = None  # Table II's Time, measured interleaved (None: a run before issue #37)
+    latency_s: float | None = None  # Table II's Time, measured interleaved (None: a run recorded before it was)
 
     def parts(self) -> dict[str, float]:
         """The recorded parts, in order."""
@@ -137,7 +137,7 @@ class AblationResult:
     physics_engine: str  # the engine "auto" (or eval.engine) resolved to
     library_version: str | None  # the library's meta "library_version"
     timing: Timing
-    environment: Environment | None  # None: not recorded (a run before issue #22, migrated to this schema)
+    environment: Environment | None  # None: not recorded (an older run, migrated to this schema)
     date: str  # when the run finished, ISO seconds
     machine: str  # host · processor · cores · jax version (backend)
     public_rescored: str | None = None  # when --rescore-public last replaced ``public``, ISO seconds

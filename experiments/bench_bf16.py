@@ -1,4 +1,4 @@
-"""Issue #37 item 3, the trial for one trajectory: the shipped S = 50 model with its weights stored as bfloat16 and
+"""A trial for one trajectory: the shipped S = 50 model with its weights stored as bfloat16 and
 widened to float32 inside the compiled program, against the float32 model it ships: ``python -m
 experiments.bench_bf16 [--rounds 10] [--write]``.
 

@@ -1,4 +1,4 @@
-"""PyTorch peers timed beside ``jg.sample`` in the same run: ``make bench-peer`` (issue #25).
+"""PyTorch peers timed beside ``jg.sample`` in the same run: ``make bench-peer``.
 
 ``python -m experiments.bench_peer [--python .venv-peer/bin/python]``: exports the shipped S = 50 model
 (seed 0's parameters, its recorded guidance w, the intent embeddings and the Catmull-Rom basis), times
@@ -44,8 +44,8 @@ from jgrounding.policy import sampling
 
 ROOT = Path(__file__).resolve().parent.parent
 STEPS = 50
-GOALS = {"single": 7.0, "batch": 1.5}  # torch.compile / jg.sample at S = 50 (issue #25)
-SHARE_GOAL = 0.70  # jg.sample's achieved GFLOP/s at 1,920 over the machine's matmul rate on the same shapes (#37)
+GOALS = {"single": 7.0, "batch": 1.5}  # torch.compile / jg.sample at S = 50: the speed goals
+SHARE_GOAL = 0.70  # jg.sample's achieved GFLOP/s at 1,920 over the machine's matmul rate on the same shapes
 
 
 def export(model: sampling.Model, intent, intensity, path: Path, eps: np.ndarray) -> np.ndarray:

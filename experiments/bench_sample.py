@@ -1,6 +1,6 @@
 """Sampling speed as users meet it: ``python -m experiments.bench sample`` (all numbers from one run).
 
-First (issue #25), through ``jg.sample`` itself for every step count S in ``STEP_COUNTS`` (each served by
+First, through ``jg.sample`` itself for every step count S in ``STEP_COUNTS`` (each served by
 its shipped checkpoint, ``jgrounding/assets/checkpoints/shipped.json``): single-trajectory and 1,920-trajectory times
 (64 held-out tuples x 30), the public/core ratio, the achieved GFLOP/s against the machine's peak
 (cores x clock x fp32 FLOP per cycle from /proc/cpuinfo's vector flags), and the fixed per-call cost
@@ -13,7 +13,7 @@ trajectories per call: one tuple x 1920, and 64 held-out tuples x 30) beside the
 (:func:`jgrounding.evaluation.latency.core_ms`: the same computation with its inputs already on the
 device and no host work), and their ratio. DDPM the same way from its ablation checkpoint when one
 exists. Then the first ``jg.sample`` in a fresh process, cold and with JAX's persistent compilation
-cache warm, and (unless ``--skip-train``) training speed. Goals of issue #14 are printed beside the
+cache warm, and (unless ``--skip-train``) training speed. The latency goals are printed beside the
 numbers; nothing here asserts them.
 """
 
@@ -43,7 +43,7 @@ PAPER_MS = {"tuple_spline_rf": 4.87, "tuple_spline_ddpm": 7.86}
 DDPM_CHECKPOINT = ROOT / "runs" / "ablation" / "tuple_spline_ddpm"
 RF_CONFIGS = tuple((sampler, s) for sampler in ("euler", "midpoint", "rk4") for s in (50, 4, 2, 1))
 DDPM_CONFIGS = (("ancestral", 50), ("ddim", 4), ("ddim", 2), ("ddim", 1))
-GOALS = {"single": (0.4, 0.08), "batch": (100.0, 12.0)}  # ms at S = 50 / at S <= 4 (issue #14, this CPU)
+GOALS = {"single": (0.4, 0.08), "batch": (100.0, 12.0)}  # ms at S = 50 / at S <= 4 (a 2-core CPU)
 BATCH = 1920  # 64 held-out tuples x K_div = 30
 FIRST_CALL = (
     "import time; t = time.perf_counter(); import jax, jgrounding as jg; "
@@ -351,7 +351,9 @@ def main(argv=None) -> int:
     p.add_argument("--batch-reps", type=int, default=15, help="calls per batch median")
     p.add_argument("--train-steps", type=int, default=10_000)
     p.add_argument("--skip-train", action="store_true")
-    p.add_argument("--all-samplers", action="store_true", help="also every RF sampler and DDPM (issue #14 table)")
+    p.add_argument(
+        "--all-samplers", action="store_true", help="also every RF sampler and DDPM (the latency goals' table)"
+    )
     args = p.parse_args(argv)
     lib = load_library()
     load = os.getloadavg()[0]
@@ -394,7 +396,7 @@ def main(argv=None) -> int:
             "Every sampler of the shipped RF (and DDPM from its ablation checkpoint when present), through the "
             "public path of the checkpoint (no routing):",
             "",
-            "| what | public | compiled core | public / core | goal (issue #14) |",
+            "| what | public | compiled core | public / core | goal |",
             "|---|---|---|---|---|",
         ]
         lines += [

@@ -30,8 +30,8 @@ import numpy as np
 from jgrounding import load_library, sim
 from jgrounding.evaluation import physics
 from jgrounding.io import write_atomic
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim import mjx as trunk_mjx
-from jgrounding.sim import model as tm
 
 ROOT = Path(__file__).resolve().parent.parent
 _CACHED = (
@@ -54,7 +54,7 @@ def _first_and_warm(u, chunk):
 _PROBE = """
 import sys, time, jax, mujoco
 from mujoco import mjx
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim.mjx import compiler_options
 contact, pairs, what = sys.argv[1] == "1", int(sys.argv[2]), sys.argv[3]
 opts = None if sys.argv[4:] == ["xla-default"] else compiler_options()
@@ -180,7 +180,7 @@ def compile_probe(only: str | None = None) -> list[str]:
     return lines
 
 
-# The compile regression's bisection (issue #36, docs/versions.md): jit(mjx.step) of the shipped trunk.xml compiled
+# The compile regression's bisection (docs/versions.md): jit(mjx.step) of the shipped trunk.xml compiled
 # cold in a venv per (jax, MuJoCo/MJX) stack, with XLA's defaults and with jgrounding.sim.mjx.compiler_options().
 BISECT_STACKS = (("0.6.2", "3.3.7"), ("0.7.0", "3.3.7"), ("0.7.1", "3.3.7"), ("0.10.2", "3.17.0"))
 _STEP_PROBE = """

@@ -4,7 +4,7 @@ Trains the methods whose Table II numbers moved between two clones (the dense CN
 process under four settings: the default twice (the same machine and threads: run-to-run), XLA's CPU backend
 on one thread (``--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``: another thread count),
 and XLA told to emit AVX2 code only (``--xla_cpu_max_isa=AVX2``: what a CPU without AVX-512 runs, as the
-machine that re-ran ``make ablation`` in issue #22). Every run prints a digest of its trained parameters and the paper-protocol
+machine that re-ran ``make ablation``). Every run prints a digest of its trained parameters and the paper-protocol
 success of its samples; the script reports which runs agree bit for bit and the spread of the success between
 settings. Writes results/reproducibility.{md,json}.
 """
@@ -26,7 +26,7 @@ from jgrounding.io import write_atomic
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("raw_dense_cnn", "tuple_dense_cnn", "tuple_spline_rf")
 SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-AVX2 = "--xla_cpu_max_isa=AVX2"  # the code XLA emits for a CPU without AVX-512 (e.g. the 2-core EPYC of issue #22)
+AVX2 = "--xla_cpu_max_isa=AVX2"  # the code XLA emits for a CPU without AVX-512 (e.g. a 2-core EPYC without AVX-512)
 SETTINGS = (
     ("default", ""),
     ("default, again", ""),

@@ -5,7 +5,7 @@
    (train and held out: the user's model; Table II keeps the paper's 192/64 protocol; the evaluation set
    is never trained on), for ``--steps``.
 2. Trains its 2-rectified flow into jgrounding/assets/checkpoints/tuple_spline_rf_reflow, and MeanFlow and the shortcut
-   model (issue #25; same options and data) into jgrounding/assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
+   model (same options and data) into jgrounding/assets/checkpoints/tuple_spline_{meanflow,shortcut}: the
    few-step candidates.
 3. For each step count S in ``STEP_COUNTS``, scores every (checkpoint, guidance w, noise scale T)
    candidate through ``jg.sample`` itself (default ``current``, K = 30 samples of each of the 64 tuples)
@@ -48,7 +48,7 @@ GUIDANCE = (0.0, 0.25, 0.5, 1.0)
 NOISE_SCALES = (0.85, 1.0, 1.1, 1.2, 1.25, 1.3, 1.35, 1.4, 1.5, 1.6)
 STEP_COUNTS = (1, 2, 4, 8, 50)
 SCORE = ("prec_r", "mode_cov", "intent_ret", "intensity_ret")
-MM_WINDOW = (0.8, 1.2)  # multimodality ratio of an admissible candidate (issue #25's bar)
+MM_WINDOW = (0.8, 1.2)  # multimodality ratio of an admissible candidate (the few-step goal)
 RESULTS = Path("results/ship.md")
 
 
@@ -289,7 +289,7 @@ def choose(step_counts=STEP_COUNTS, guidance=GUIDANCE, noise_scales=NOISE_SCALES
 
 
 def report(manifest: dict) -> str:
-    """results/ship.md: what serves each S, scored on the report half, against S = 50 and issue #25's bar."""
+    """results/ship.md: what serves each S, scored on the report half, against S = 50 and the few-step goal."""
     cols = ("prec_r", "mode_cov", "mm_ratio", "intent_ret", "intensity_ret", "between")
     names = {"prec_r": "Prec@r", "mode_cov": "ModeCov", "mm_ratio": "MM ratio", "intent_ret": "Intent ret."}
     names |= {"intensity_ret": "Intensity ret.", "between": "Between"}
@@ -311,7 +311,7 @@ def report(manifest: dict) -> str:
         "",
         "| S | checkpoint | w | T | "
         + " | ".join(names[c] for c in cols)
-        + " | meets #25 | Prec@r at T = 1 | MM at T = 1 |",
+        + " | meets the few-step goal | Prec@r at T = 1 | MM at T = 1 |",
         "|---|---|---|---|" + "---|" * len(cols) + "---|---|---|",
     ]
     for s in sorted(scores, key=int):
@@ -333,7 +333,7 @@ def report(manifest: dict) -> str:
     replay = manifest.get("references", {}).get("training_replay", {}).get("report")
     lines += [
         "",
-        f"Meets #25: within 0.02 of S = {top_s} on Prec@r and ModeCov, MM ratio in 0.8-1.2, intensity retrieval "
+        f"Meets the few-step goal: within 0.02 of S = {top_s} on Prec@r and ModeCov, MM ratio in 0.8-1.2, intensity retrieval "
         ">= 0.95 (all on the report half, with the key the choice used). On all 64 tuples: "
         + "; ".join(
             f"S = {s}: Prec@r {m['all_tuples']['prec_r']:.3f}, MM {m['all_tuples']['mm_ratio']:.3f}"

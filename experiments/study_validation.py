@@ -1,4 +1,4 @@
-"""Validate the study's analysis without people (issue #35): simulated studies at the paper's positive ratios
+"""Validate the study's analysis without people: simulated studies at the paper's positive ratios
 (100 participants, two conditions, six dimensions, an order effect and 5% dropout per block).
 
     python -m experiments.study_validation              # 1,000 studies (about a minute on 2 cores)

@@ -8,7 +8,7 @@
 - ``training``: generator options each off or on (EMA, flow-time sampling, guidance, few-step reflow vs
   DDPM/DDIM), 5 seeds; chooses the shipped default (experiments/sweep_training.py).
 - ``fewstep``: RF, 2-rectified flow, MeanFlow and shortcut at S = 1, 2, 4, 8, 50 on the distribution
-  metrics, 5 seeds (experiments/sweep_fewstep.py, issue #25).
+  metrics, 5 seeds (experiments/sweep_fewstep.py).
 Each writes results/sweep_<name>.{md,json} and a PNG.
 """
 

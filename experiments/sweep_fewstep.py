@@ -1,4 +1,4 @@
-"""Few steps that keep the distribution (issue #25): ``python -m experiments.sweep fewstep [--steps N]``.
+"""Few steps that keep the distribution: ``python -m experiments.sweep fewstep [--steps N]``.
 
 Four generators of Tuple + Spline, each trained over the same seeds (vmapped) with the same options
 (``OPTIONS``: EMA of the parameters) on the library's training pairs: RF sampled with Euler, its
@@ -85,7 +85,7 @@ def markdown(table: dict, seeds, steps: int, k: int, seconds: dict, r: float, n_
         + ", ".join(f"{lab} {sec:.0f} s" for lab, sec in seconds.items())
         + ".",
         "",
-        f"Goal at a few-step S (issue #25): within 0.02 of RF S = 50 on Prec@r ({ref['prec_r'][0]:.3f}) and ModeCov "
+        f"Goal at a few-step S: within 0.02 of RF S = 50 on Prec@r ({ref['prec_r'][0]:.3f}) and ModeCov "
         f"({ref['mode_cov'][0]:.3f}), multimodality ratio 0.8-1.2, intensity retrieval >= 0.95.",
     ]
     for label, rows in table.items():

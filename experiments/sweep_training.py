@@ -1,4 +1,4 @@
-"""Generator options, each off or on (issue #16): ``python -m experiments.sweep training``.
+"""Generator options, each off or on: ``python -m experiments.sweep training``.
 
 Rows (Tuple + Spline + RF unless named; every row trained over the same seeds, vmapped, and evaluated
 on the held-out tuples with K samples each): the paper's RF; EMA of the parameters (0.999, 0.9999,

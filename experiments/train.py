@@ -47,7 +47,7 @@ def main(argv=None) -> int:
         help="train: the 192 training pairs (Table II's protocol); all: every library pair, train and held out "
         "(the shipped model; the evaluation set is never trained on)",
     )
-    opts = p.add_argument_group("generator options (issue #16; off by default = the paper's Table I)")
+    opts = p.add_argument_group("generator options (off by default: the paper's Table I)")
     opts.add_argument("--ema-decay", type=float, help="= --set train.ema_decay=...: ship an EMA (0 = off)")
     opts.add_argument("--time-sampler", help="= --set train.time_sampler=...: uniform, logit_normal, beta")
     opts.add_argument("--condition-dropout", type=float, help="= --set train.condition_dropout=... (for guidance)")

@@ -3,7 +3,7 @@
 In the spirit of MuJoCo Playground's ``default_config()`` and big_vision's config files:
 
 - :class:`ModelConfig`: network sizes (recorded in every checkpoint, so a checkpoint rebuilds its own network).
-- :class:`TrainConfig`: AdamW, batch, steps, and the generator options of issue #16 (EMA, flow-time
+- :class:`TrainConfig`: AdamW, batch, steps, and the generator options (EMA, flow-time
   distribution, condition dropout for classifier-free guidance), each off by default.
 - :class:`SampleConfig`: sampler, steps S, guidance weight w.
 - :class:`PhysicsConfig`: the physics-aware fine-tuning of the ablation's extra row.
@@ -117,7 +117,7 @@ class SampleConfig:
     ancestral for a DDPM); ``guidance`` w: v = v_c + w (v_c - v_null), 0 = off. ``sampler`` None: the
     generator's default; a name it does not have is refused when sampling (never silently replaced).
     ``noise_scale``: temperature of the initial noise, eps ~ N(0, noise_scale^2 I) (1 = the trained prior;
-    above 1 spreads the samples of an under-dispersed few-step model, issue #25).
+    above 1 spreads the samples of an under-dispersed few-step model).
 
     Frozen and hashable: ``jg.sample(..., config=SampleConfig(...))`` passes one, and the public sampler
     compiles one program per (config, batch bucket). A model fills in and checks what depends on its
@@ -162,7 +162,7 @@ class EvalConfig:
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     num_samples: int = 30  # K_div samples per held-out tuple
     # Of each tuple's K_div samples, the first this many are simulated for the physics columns (>= num_samples:
-    # all). Samples are i.i.d., so the first 10 are a random subset: a third of the rollouts (issue #37).
+    # all). Samples are i.i.d., so the first 10 are a random subset: a third of the rollouts, for a third of the time.
     physics_samples: int = 10
     tau: float = TAU_RMS
     rows: tuple[str, ...] = ()  # registry names of the rows; () = Table II's five and the physics-aware RF

@@ -3,7 +3,7 @@ min on 2 cores, v5 ~3 min).
 
 Library v3's code interpolated every intensity between a variant's subtle and emphatic ends, with at most half
 a pull for a subtle gesture and three free key poses after rest: different intents then overlapped at tau
-(issue #38). v4 chooses one *word* per (intent, variant, intensity): four tendon pulls at the three key
+v4 chooses one *word* per (intent, variant, intensity): four tendon pulls at the three key
 moments after rest, each slack or pulled (at an amplitude of 0.6, 0.75, 0.9 or 1.0 of the largest safe pull),
 so that two words differ by whole pulls. It runs in three steps:
 
@@ -65,7 +65,7 @@ STAGES = (
     dict(seed=7, iters=120_000, TI=0.62, TV2=0.8, TV3=0.85, TC=0.58, TF=0.5, wi=5, wv=30, wf=1.5, T0=0.03),
 )
 MONO, WM = 0.1, 40.0  # intensity growth: the least relative rise of excursion and speed per level, its weight
-# Library v5 (issue #38's last bracket): v4's code, plus curiosity and beckoning with two variants (as in v3: probing
+# Library v5 (for the last bracket that v4 missed): v4's code, plus curiosity and beckoning with two variants (as in v3: probing
 # from the left or the right, the tip curling in from either side), so that 32 tuples are split. The tuple mean of
 # a split tuple then fails the replay test in most of them, while the three-variant tuples (whose 1 + 1 + 1 training
 # mean lies close to every variant: pointing's best is ~0.35 RMS) still keep the held-out variant from being the

@@ -6,7 +6,7 @@
   its title) and rendered by :mod:`jgrounding.sim.render`; the thin blue rod is the rest posture.
 - ``stages``: one figure per pipeline stage for docs/how_it_works.md, in docs/stages/
   (grounding, splines, sampling, trunk).
-- ``cli``: runs the command line on the README's example and keeps its pictures in docs/cli/.
+- ``cli``: runs the command line on the README's example and keeps its pictures and its GIF in docs/cli/.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from jgrounding import safety, sim
 from jgrounding.apps.plotting import TENDON_COLORS, TENDON_LABELS, plt, save
-from jgrounding.sim import model as trunk_model
+from jgrounding.sim import mjcf as trunk_model
 from jgrounding.sim import render
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -313,7 +313,7 @@ def cli_pictures(out: Path = DOCS / "cli", text: str = CLI_TEXT) -> list[str]:
             raise RuntimeError("the command line failed")
         return [
             str(shutil.copyfile(Path(tmp) / name, out / name))
-            for name in ("tendons.png", "keyframes.png", "posture.png")
+            for name in ("tendons.png", "keyframes.png", "posture.png", "motion.gif")
         ]
 
 

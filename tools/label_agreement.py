@@ -1,5 +1,5 @@
 """How well a second reader agrees with the writer on the situation hold-out: the reference the situation goals of
-#34 are read against.
+the semantic bench are read against.
 
     python -m tools.label_agreement           # the two readers
     python -m tools.label_agreement --head    # and the shipped head (jg.ground_many) against each reader

@@ -19,7 +19,7 @@ from jgrounding.apps.plotting import plot_tendons, plt, save
 from jgrounding.evaluation import metrics
 from jgrounding.io import write_atomic
 from jgrounding.library import designs, primitives, screening
-from jgrounding.sim import model as trunk_model
+from jgrounding.sim import mjcf as trunk_model
 from jgrounding.sim import render
 from jgrounding.vocabulary import INTENSITIES, INTENTS, describe
 from tools import design_signatures

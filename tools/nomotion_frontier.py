@@ -3,7 +3,7 @@ against what its holds cost the texts that call for a motion (acted, ECE), at ev
 
     python -m tools.nomotion_frontier                     # print the table, write results/nomotion_frontier.{md,png}
 
-#34 asks for both no-motion held >= 0.95 and ECE <= 0.05 on every frozen set, and the situation-only sets hold no
+The semantic bench's goals ask for both no-motion held >= 0.95 and ECE <= 0.05 on every frozen set, and the situation-only sets hold no
 text that calls for no motion: every hold there is a false one, and a held text reports a confidence near 0
 (:func:`jgrounding.semantics.nomotion.apply`) while its intent is most often right. This tool measures, on the dev
 sets of ``tools.semantics_system_dev`` (never a frozen bench), whether any threshold of the shipped detector meets both
@@ -76,7 +76,7 @@ def frontier(runs: dict, thresholds=THRESHOLDS) -> list[tuple[str, dict]]:
 
 
 def meets(r: dict) -> bool:
-    """#34's three goals that the decision trades against each other, on the dev proxies: the no-motion dev set's
+    """The bench's three goals that the decision trades against each other, on the dev proxies: the no-motion dev set's
     held >= 0.95 and ECE <= 0.05 (a no-motion bench's), and the unfitted situations' ECE <= 0.05 (a situation
     bench's)."""
     g = bs.GOALS_34
@@ -133,7 +133,8 @@ def figure(rows, path) -> None:
         ax.set_ylabel("unfitted situation hold-outs: ECE")
         ax.legend(fontsize=7, loc="upper left")
     fig.suptitle(
-        "#34's goals on dev, the no-motion decision at each detector threshold (green: met; * shipped)", fontsize=10
+        "The bench's goals on dev, the no-motion decision at each detector threshold (green: met; * shipped)",
+        fontsize=10,
     )
     fig.tight_layout()
     from jgrounding.apps import plotting
@@ -168,7 +169,7 @@ def main(argv=None) -> int:
         "The no-motion decision's act/hold frontier on the dev sets (`python -m tools.nomotion_frontier`; "
         f"{bs.machine()}): `jg.ground`'s decision with the shipped detector at each threshold. Sets: "
         f"{NO_MOTION} ({len(sd.read(sd.SETS[NO_MOTION]))} texts, 270 call for no motion), the unfitted situation "
-        "hold-outs pooled (every hold a false one), v2 dev and the blind hold-outs. Goals as #34's on the frozen "
+        "hold-outs pooled (every hold a false one), v2 dev and the blind hold-outs. Goals as the bench's on the frozen "
         "sets: held >= 0.95, ECE <= 0.05.\n\n![frontier](nomotion_frontier.png)\n\n" + text + "\n\n" + verdict + "\n"
     )
     write_atomic(out.with_suffix(".md"), md)

@@ -8,18 +8,18 @@ vote, the no-motion decision), one text at a time, scored with ``bench semantics
 The sets: v2 dev and the plainly worded dev split (what a head and a vote are chosen on), the blind situation
 hold-outs (:data:`tools.train_semantics.SITUATION_DEVS`, which calibrate the head and the vote's situation
 temperature), the situation hold-out that nothing is fitted on (``assets/semantics_dev_situations.jsonl``,
-written from another brief), and two sets of the tenth session that nothing is trained or fitted on: a second
+written from another brief), and two more sets that nothing is trained or fitted on: a second
 unfitted situation hold-out (``assets/semantics_dev_situations_s26.jsonl``, a blind writer from the situation brief)
 and a no-motion dev set (``assets/semantics_dev_nomotion/dev.jsonl``, a blind writer from the no-motion brief: texts
 that call for no motion and contrast texts). No test split or blind bench is read.
 
-The ship rule for a change to calibration (:data:`RULE`; the ninth session's situation temperature, written before
-its first run): on v2 dev and plain dev, no metric worse (intent, acted, intensity exact, no-motion held; confident
+The ship rule for a change to calibration (:data:`RULE`, written before the first run of the change it judged, a situation
+temperature): on v2 dev and plain dev, no metric worse (intent, acted, intensity exact, no-motion held; confident
 wrong not higher; ECE of the two pooled not higher); on the unfitted hold-out a lower ECE, no lower intent and no more
 confident wrongs; on the blind hold-outs, confident wrong within ``tools.train_semantics.SITUATION_TARGET_WRONG``.
-A retrained head is compared the same way (the eighth session compared head + vote on dev by hand).
+A retrained head is compared the same way: head and vote together, as users call them.
 
-The ship rule for a retrained no-motion detector (:data:`DETECTOR_RULE`, ``--rule detector``; the tenth session's,
+The ship rule for a retrained no-motion detector (:data:`DETECTOR_RULE`, ``--rule detector``,
 written before its first run): on v2 dev and plain dev the same clauses as :data:`RULE`'s; on the no-motion dev set
 no-motion held, intent and acted not lower and confident wrong not higher; on the two unfitted situation hold-outs
 pooled a lower ECE, acted not lower and confident wrong not higher; on the blind hold-outs ECE not higher and
@@ -38,9 +38,9 @@ from tools import train_semantics as ts
 
 ROOT = ts.ROOT
 UNFITTED = "hold-out"  # the situation hold-out nothing is fitted on
-UNFITTED2 = "s26 hold-out"  # the tenth session's second one
+UNFITTED2 = "s26 hold-out"  # a second one, from another blind writer
 UNFITTED_BOTH = "hold-outs, unfitted"  # the two pooled
-NO_MOTION_DEV = "no-motion dev"  # the tenth session's no-motion and contrast texts, never trained or fitted on
+NO_MOTION_DEV = "no-motion dev"  # no-motion and contrast texts, never trained or fitted on
 SETS = {
     "v2 dev": (ts.DEV,),
     "plain dev": (ts.DEV_PLAIN,),

@@ -29,7 +29,7 @@ RECORDS = ROOT / "results" / "timings.json"
 DOC = ROOT / "docs" / "testing.md"
 START, END = "<!-- timings:start -->", "<!-- timings:end -->"
 COMMANDS = {"test": ("make", "test"), "ablation": ("make", "ablation")}
-GOALS_S = {"test": 6 * 60, "ablation": 12 * 60}  # issue #37: on a 2-core AVX2 machine
+GOALS_S = {"test": 6 * 60, "ablation": 12 * 60}  # the goals on a 2-core AVX2 machine
 AVX2 = "--xla_cpu_max_isa=AVX2"
 
 

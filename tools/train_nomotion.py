@@ -1,4 +1,4 @@
-"""Train the learned no-motion detector (#34) and write ``jgrounding/assets/nomotion_detector.npz``.
+"""Train the learned no-motion detector and write ``jgrounding/assets/nomotion_detector.npz``.
 
     python -m tools.train_nomotion            # train, choose the threshold by cross-validation, write the file
     python -m tools.train_nomotion --check    # train again and compare with the shipped file, byte for byte
@@ -10,7 +10,7 @@ wording; the detector learns the same decision from examples. Data (nothing else
   writers' nine kinds) and ``assets/semantics_eval_w3/train.jsonl`` (a third blind writer's, the same kinds);
   never their ``bench.jsonl``, which only ``python -m experiments.bench_semantics`` reads;
 - **no motion, detector only** (label 1): the texts with intent ``none`` of
-  ``assets/semantics_nomotion_train/*/train.jsonl`` (blind writers of the seventh session, the same nine kinds),
+  ``assets/semantics_nomotion_train/*/train.jsonl`` (more blind writers, the same nine kinds),
   which the head is not trained on (:data:`DETECTOR_ONLY`); their contrast texts are motion texts as below;
 - **motion** (label 0): those files' contrast texts ("don't X; just Y": they choose a motion), the situation-only
   and mixed texts of ``assets/semantics_eval_s3/train.jsonl`` (a fourth blind writer's; each style its own source)
@@ -47,7 +47,7 @@ from tools.semantics_corpus import normalized
 from tools.train_semantics import BLIND_TRAIN, UNSHIPPED_TRAIN  # the blind writers' training splits
 
 # The blind writers' files the detector reads, in order: the head's (BLIND_TRAIN) and two writers' situations that the
-# shipped head is not trained on (UNSHIPPED_TRAIN, eighth session: motion texts here).
+# shipped head is not trained on (UNSHIPPED_TRAIN: motion texts here).
 DETECTOR_BLIND = BLIND_TRAIN + UNSHIPPED_TRAIN
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -62,7 +62,7 @@ MAX_FALSE_HOLD = 0.01  # at most this share of each source's motion texts held o
 # Situation-only texts (no motion word: a scene the writer judged to call for one) may be held up to this share:
 # writers disagree on whether a scene asks anything of the robot ("people still tapping at their laptops" is
 # resting to one, activity that asks nothing to another), and a held situation is the safe failure (the trunk holds
-# still, #34), while a text that names or chooses a motion held by mistake is a plain refusal to obey.
+# still), while a text that names or chooses a motion held by mistake is a plain refusal to obey.
 MAX_FALSE_HOLD_SITUATION = 0.05
 SITUATION_SOURCES = ("blind situation",)  # the sources that bound applies to (s3's situation-only training texts)
 STEP = 0.0025  # the threshold grid

@@ -4,7 +4,8 @@ Grounds the text to an (intent, intensity) tuple, samples K trajectories, and wr
 - ``tendons.png``: the tendon commands (sample 0 bold, the others faint),
 - ``motion.gif``, ``keyframes.png`` and ``posture.png``: the simulated trunk (MuJoCo renderer, matplotlib
   fallback) from the side (user on the right) and from behind (robot's left on the left): the whole motion,
-  the postures at t = 1, 2, 3, 4, 5 s, and the final posture,
+  the postures at t = 0, 1, 2, 3, 4, 5 s, and the final posture, each under the text and its tuple with a time
+  stamp,
 - ``commands.csv`` / ``commands.json``: the command stream of sample 0 at the control rate, with units
   and bounds in a header, ready for a motor controller; ``samples.npy``: all K trajectories.
 
@@ -12,7 +13,8 @@ Grounds the text to an (intent, intensity) tuple, samples K trajectories, and wr
 holds now (default ``rest``): the trajectories blend in from it within the slew bound. ``--screen``
 simulates the candidates on the trunk and keeps only feasible ones (stable, contact force and tip speed
 near the user within bounds), reporting how many were rejected. ``--jsonl`` prints one JSON object per
-event for scripts; ``--quiet`` prints only the output folder. The decision is the one every front end makes
+event for scripts; ``--quiet`` prints only the output folder. The files go to ``--out`` (default
+``grounding_out/`` in the current folder). The decision is the one every front end makes
 (:class:`jgrounding.policy.respond.Responder`): with ``--checkpoint``, grounding chooses among the checkpoint's
 tuples; a grounding below the calibrated confidence threshold does not drive the trunk: the command stream holds
 still at ``--current`` and the screen says why ("holding still: ..."); ``--force`` drives the grounded tuple anyway.
@@ -68,6 +70,19 @@ def _current(text: str):
     return values
 
 
+def picture_title(text: str | None, intent: str, intensity: str, hold: bool = False, width: int = 60) -> str:
+    """The title of the pictures: the text (cut to ``width`` characters) and the tuple it grounded to, or the
+    tuple alone when it was given; a held (not confident) grounding says so."""
+    tuple_ = f"({intent}, {intensity})"
+    if hold:
+        tuple_ = f"holding still (grounded {tuple_}, not confident)"
+    if not text:
+        return tuple_
+    text = " ".join(text.split())
+    text = text if len(text) <= width else text[: width - 1].rstrip() + "…"
+    return f'"{text}" -> {tuple_}'
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m jgrounding",
@@ -83,7 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help=f"number of trajectories to sample (1..{MAX_SAMPLES}, default 8)",
     )
-    p.add_argument("--out", default="grounding_out", metavar="DIR", help="output folder (default grounding_out)")
+    p.add_argument(
+        "--out",
+        default="grounding_out",
+        metavar="DIR",
+        help="output folder for the pictures, command streams and samples, made if missing (default "
+        "grounding_out/ in the current folder, with or without --jsonl)",
+    )
     p.add_argument(
         "--backend",
         choices=("embedded", "cues", "mllm"),
@@ -139,7 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--quiet", action="store_true", help="print only the output folder")
-    mode.add_argument("--jsonl", action="store_true", help="print JSON lines (one per event)")
+    mode.add_argument(
+        "--jsonl",
+        action="store_true",
+        help="print JSON lines (one per event) instead of text; the files still go to --out (default grounding_out/)",
+    )
     return p
 
 
@@ -255,11 +280,7 @@ def run(args: argparse.Namespace) -> int:
         confidence=confidence,
         **({"hold_still": True} if hold else {}),
     )
-    title = (
-        f"holding still at the current command (grounded {intent} / {intensity}, not confident)"
-        if hold
-        else f"{intent} / {intensity}"
-    )
+    title = picture_title(args.text, intent, intensity, hold)
     own_stream = {
         "channels": info["channels"] if info else None,
         "limits": info["limits"] if info and args.units == "lab" else None,
@@ -290,9 +311,9 @@ def run(args: argparse.Namespace) -> int:
         from jgrounding.sim import render
 
         t0 = time.perf_counter()
-        files["posture"] = str(render.render_posture(u[0], out / "posture.png"))
-        files["keyframes"] = str(render.render_keyframes(u[0], out / "keyframes.png"))
-        files["motion"] = str(render.render_motion(u[0], out / "motion.gif"))
+        files["posture"] = str(render.render_posture(u[0], out / "posture.png", title=f"{title}, sample 0"))
+        files["keyframes"] = str(render.render_keyframes(u[0], out / "keyframes.png", title=f"{title}, sample 0"))
+        files["motion"] = str(render.render_motion(u[0], out / "motion.gif", title=f"{title}, sample 0"))
         say("render", f"rendered motion [{time.perf_counter() - t0:.1f} s]")
     for name, path in files.items():
         say("file", f"  {name:9s} {path}", kind=name, path=path)

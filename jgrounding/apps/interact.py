@@ -82,7 +82,7 @@ def _save_stream(out: Path, stream) -> Path:
 
 
 def _to_rest(args, stdout, state) -> int:
-    """End of the session: ramp from the trunk's last command back to rest within the slew bound."""
+    """End of the loop: ramp from the trunk's last command back to rest within the slew bound."""
     import numpy as np
 
     from jgrounding import safety

@@ -1,4 +1,4 @@
-"""Own models in the apps (issue #26): a checkpoint trained on an imported library drives the trunk from text.
+"""Own models in the apps: a checkpoint trained on an imported library drives the trunk from text.
 
 - :func:`restrict`: grounding chooses among the checkpoint's tuples. A text grounded to a tuple the
   checkpoint never learned is moved to its nearest learned tuple, and the returned note says so: the same

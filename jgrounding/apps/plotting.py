@@ -15,14 +15,19 @@ TENDON_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:orange")
 TENDON_LABELS = ("tendon 0 (toward user)", "tendon 1 (left)", "tendon 2 (away)", "tendon 3 (right)")
 
 
-def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = True, lw: float = 1.6, labels=None):
-    """Draw tendon commands ``(T, N_u)`` or samples ``(K, T, N_u)`` on ``ax``; reference dashed.
+def plot_tendons(
+    ax, u, *, reference=None, alpha: float = 1.0, legend: bool = True, lw: float = 1.6, labels=None, dt=None
+):
+    """Draw tendon commands ``(T, N_u)`` or samples ``(K, T, N_u)`` on ``ax`` against time in seconds (step k
+    at k * ``dt``; ``dt`` defaults to the control period, 1/30 s, so 150 steps span 5 s); reference dashed.
 
     ``labels``: one legend name per tendon (default: the built-in trunk's layout for 4 tendons, else
     ``tendon j``; pass an imported library's channel names for a lab's own trunk)."""
+    if dt is None:
+        from jgrounding.sim import CONTROL_DT as dt
     u = np.asarray(u)
     samples = u[None] if u.ndim == 2 else u
-    tau = np.linspace(0.0, 1.0, samples.shape[-2])
+    tau = np.arange(samples.shape[-2]) * float(dt)
     colors = TENDON_COLORS if samples.shape[-1] == 4 else [f"C{j}" for j in range(samples.shape[-1])]
     if labels is None:
         labels = TENDON_LABELS if samples.shape[-1] == 4 else [f"tendon {j}" for j in range(samples.shape[-1])]
@@ -34,7 +39,7 @@ def plot_tendons(ax, u, *, reference=None, alpha: float = 1.0, legend: bool = Tr
         for j in range(ref.shape[-1]):
             ax.plot(tau, ref[:, j], color=colors[j], ls="--", lw=1.2)
     ax.set_ylim(-0.03, 1.03)
-    ax.set_xlabel("execution time τ")
+    ax.set_xlabel("time (s)")
     ax.set_ylabel("tendon pull u")
     if legend:
         ax.legend(fontsize=7, loc="upper right")

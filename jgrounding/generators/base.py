@@ -1,4 +1,4 @@
-"""The one generator interface (issue #12): every Table II generator is ``init``, ``loss`` and ``sample``.
+"""The one generator interface: every Table II generator is ``init``, ``loss`` and ``sample``.
 
 Like openpi's ``BaseModel`` (``compute_loss`` / ``sample_actions``): the method registry
 (:mod:`jgrounding.generators.methods`) pairs a generator with a condition and an actuation representation, and

@@ -1,4 +1,4 @@
-"""One-step generators (issue #25): MeanFlow and a shortcut model, as pure losses and one jump sampler.
+"""One-step generators: MeanFlow and a shortcut model, as pure losses and one jump sampler.
 
 Convention of the paper (as :mod:`jgrounding.generators.flows`): lambda = 0 is noise, lambda = 1 is data,
 ``z_t = (1 - t) eps + t c`` and the instantaneous velocity is ``v = c - eps``. Both networks take a

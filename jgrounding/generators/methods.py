@@ -5,7 +5,7 @@ and ``tuple_spline_rf``. Tuple conditioning is (E_m(m), E_z(z)); raw conditionin
 embedding. Spline methods work on the N_u x P controls (normalized to [-1, 1]) and reconstruct u = R(c); dense
 methods predict the 150 x N_u trajectory directly.
 
-Beyond Table II, registered the same way: the one-step generators of issue #25 (``tuple_spline_meanflow``,
+Beyond Table II, registered the same way: the one-step generators (``tuple_spline_meanflow``,
 ``tuple_spline_shortcut``: :data:`FEW_STEP`, :mod:`jgrounding.generators.few_step`) and the physics-aware RF
 (``tuple_spline_rf_physics``: the RF fine-tuned on its own screened samples; its ``recipe`` names how
 :mod:`jgrounding.training` makes it). :data:`METHODS` stays the five rows of Table II and :data:`ABLATION_ROWS`
@@ -66,7 +66,7 @@ REGISTRY = {
         MethodSpec("tuple_spline_cnn", "Tuple + Spline + CNN", TUPLE, Spline(), Regressor()),
         MethodSpec("tuple_spline_ddpm", "Tuple + Spline + DDPM", TUPLE, Spline(), DDPM()),
         MethodSpec("tuple_spline_rf", "Tuple + Spline + RF", TUPLE, Spline(), RectifiedFlow()),
-        # Beyond Table II: one-step generators (issue #25, generators/few_step.py)
+        # Beyond Table II: one-step generators (generators/few_step.py)
         MethodSpec("tuple_spline_meanflow", "Tuple + Spline + MeanFlow", TUPLE, Spline(), MeanFlow()),
         MethodSpec("tuple_spline_shortcut", "Tuple + Spline + Shortcut", TUPLE, Spline(), Shortcut()),
         # Beyond Table II: the RF fine-tuned on its own screened samples (training/physics.py)

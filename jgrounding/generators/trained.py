@@ -32,7 +32,7 @@ class Trained:
     """Parameters of ``len(seeds)`` runs of one method (leading axis = seed) and what sampling them needs.
 
     ``sample_config``: the sampling defaults it was chosen with (e.g. the guidance w of a shipped model), and
-    ``noise_scales`` the initial-noise temperature chosen for particular step counts (issue #25);
+    ``noise_scales`` the initial-noise temperature chosen for particular step counts (``experiments.ship``);
     ``library``: the identity of the library it was trained on as its checkpoint records it
     (``version``, ``sha256``, ``path`` and ``tuples`` where known; empty for a model trained in memory)."""
 

@@ -4,7 +4,7 @@ library is :data:`DEFAULT_VERSION`.
 
 **Library v3** (``--version 3``): :mod:`jgrounding.library.primitives`' code, 8 intents with two mirrored
 variants split 2 + 2, the others with one; intensity levels interpolate a variant's subtle and emphatic ends.
-Its wrong-intent and far-intensity brackets do not hold (issue #38; results/library_v3/).
+Its wrong-intent and far-intensity brackets do not hold (results/library_v3/).
 
 **Library v4** (``--version 4``): a code of nearly binary key poses
 (:mod:`jgrounding.library.signatures_v4`, designed by ``python -m tools.design_library``) chosen per

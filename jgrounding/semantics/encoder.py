@@ -144,7 +144,7 @@ def matmul_flops(length: int, rows: int = 1, layers: int = NUM_LAYERS) -> int:
 # How grounding stores the transformer layers' dense matrices on the device (one place: head.with_top reads it).
 # "int8": each matrix in int8 with a float32 scale per output column (max |w| of the column / 127), a quarter of
 # float32's bytes; "float16": half; "float32": as trained. A single text's program is bound by reading these
-# matrices, not by the arithmetic (docs/how_it_works.md, 'Speed'), so fewer bytes make a warm call faster.
+# matrices, not by the arithmetic (docs/how_it_works.md, "Why a trained head over a small encoder"), so fewer bytes make a warm call faster.
 MATRIX_STORAGE = "int8"
 STORAGES = ("int8", "float16", "float32")
 

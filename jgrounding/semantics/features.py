@@ -2,7 +2,7 @@
 
 :data:`INPUTS` registers them by the name a head's config records (``HeadConfig.inputs``), each with its width
 (computed here, once) and how it is computed. ``python -m tools.train_semantics`` compares heads over them
-(docs/how_it_works.md, "Why this design"); ``tuned`` ships:
+(docs/how_it_works.md, section 1); ``tuned`` ships:
 
 - ``embedding``: the frozen sentence embedding (384);
 - ``eq3``: the embedding and the cue-list reducer's evidence (:func:`jgrounding.semantics.cue_reducer.cue_features`:

@@ -49,7 +49,7 @@ class HeadConfig:
     num_reasons: int = 0  # classes of the "why no behaviour" head (0: none)
     reason_weight: float = 0.3  # its loss weight
     tuned_layers: int = 0  # "tuned": how many top encoder layers were trained with the head (shipped as deltas)
-    # The MiniLM layers the encoder keeps, by index (empty: all six). A distilled student (#34 item 4) keeps fewer:
+    # The MiniLM layers the encoder keeps, by index (empty: all six). A distilled student keeps fewer:
     # its layers start from these, learn the six-layer teacher's token states, then train with the head; all of
     # them are then tuned and shipped as deltas from these base layers.
     encoder_layers: tuple[int, ...] = ()
@@ -249,8 +249,8 @@ def knn_blend(knn: dict, p_intent, p_intensity, sentence, extras, k: int):
     the 17-way vote of the ``k`` training texts nearest to the query (the text's tuned pooled vector the table was
     made of, :attr:`Head.knn_pool`), cosine, weighted by exp((sim - best sim) / tau). With a ``temperature`` in the
     table, p^(1/T) renormalised, for every text; with a ``situation_temperature``, the same again for the texts the
-    gate lets through (``tools.semantics_knn --situation-temperature``; the shipped table has none: the ninth
-    session's did not pass its ship rule). With an intensity vote in the table (``onehot_z`` and its weight ``b``),
+    gate lets through (``tools.semantics_knn --situation-temperature``; the shipped table has none: the one
+    tried did not pass its ship rule). With an intensity vote in the table (``onehot_z`` and its weight ``b``),
     the same neighbours' intensities vote too (those labelled with one; a text none of whose neighbours is keeps the
     head's): ``p_z = (1 - b) p_z_head + b p_z_knn`` for the texts the gate lets through.
 

@@ -1,4 +1,4 @@
-"""The explicit no-motion decision (#34): a rule over a text's structure and a learned detector that say *hold*
+"""The explicit no-motion decision: a rule over a text's structure and a learned detector that say *hold*
 and why.
 
 The trained head scores "no behaviour" as one class among 17, so a text that names the motion it rules out
@@ -22,8 +22,8 @@ The rule's phrases were written against the training texts and miss unseen wordi
 (:class:`Detector`) works beside it: a small MLP over the text's sentence vector, the one the shipped head's
 program computes anyway (:func:`jgrounding.semantics.embedded.ground_embedded_vectors`), holds a text the rule
 lets through when it is confident the text calls for no motion (kind ``learned``: "the text calls for no motion
-(learned detector, p = 0.93)"), under the same :func:`chosen_motion` guard. It is trained on the blind-written
-training split of #34 and the head's motion texts (``python -m tools.train_nomotion`` writes
+(learned detector, p = 0.93)"), under the same :func:`chosen_motion` guard. It is trained on the training splits of the
+blind-written no-motion sets and the head's motion texts (``python -m tools.train_nomotion`` writes
 ``jgrounding/assets/nomotion_detector.npz``), its threshold chosen by cross-validation so that it holds at most
 1 % of each source's motion texts; it adds tens of microseconds to a grounding. A detector made for another head
 (its vectors are that head's) is ignored, with a warning, until the tool is run again. Backends that do not run

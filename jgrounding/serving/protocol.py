@@ -270,7 +270,7 @@ async def resolve(req: SampleRequest | RespondRequest, policy, call) -> tuple[An
 
 def scene() -> dict:
     """What the page needs to draw the trunk and the user (metres, world frame; x toward the user, z up)."""
-    from jgrounding.sim import model as tm
+    from jgrounding.sim import mjcf as tm
 
     return {
         "base": [0.0, 0.0, tm.BASE_HEIGHT],

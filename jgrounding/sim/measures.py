@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 
 from jgrounding import config
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 
 NUM_SEGMENTS = tm.NUM_SEGMENTS
 NUM_STEPS = config.NUM_STEPS  # T of Table I

@@ -1,194 +1,23 @@
-"""MJCF builder for the tendon-driven soft elephant trunk: ``python -m jgrounding.sim.model``.
+"""Write the trunk's MJCF model: ``python -m jgrounding.sim.model [--out FILE] [--segments N]``.
 
-The trunk hangs from the robot's "face" (base at z = BASE_HEIGHT) and is a tapered chain of
-``NUM_SEGMENTS`` capsules. Every joint between segments has two bending hinges (about x and y) and a
-short axial slide, with stiffness and damping that fall geometrically toward the tip, so a uniform
-tendon pull bends the distal part more: the tip curls, as an elephant's does.
-
-Tendons. Four *fixed* tendons at 0, 90, 180, 270 degrees around the backbone (0 faces the user at +x,
-1 the robot's left +y, 2 away -x, 3 right -y). Tendon j's length is sum_i r_i * (bending of joint i
-toward side j) + sum_i s_i (axial slides): the constant-curvature approximation that tendon-driven
-continuum robots are commonly modelled with, with the routing radius r_i tapering like the body.
-Pulling one tendon bends the trunk toward its side; pulling all four (co-contraction) cancels the
-bending and compresses the axial slides, so the trunk shortens (retract); all slack lets it hang at
-full length (extend). We chose fixed over spatial (site-routed) tendons: the same bend / curl /
-retract behaviour for the primitives with fewer kinematic terms (no wrapping geometry per step), and
-the model of the continuum-robot literature. Compile time did not decide it: SPEC §8 measured the same
-16 s single-step MJX compile for the fixed- and the spatial-tendon trunk on the pinned stack.
-
-Actuators. One ``motor`` per tendon, ``ctrlrange = [0, 1]`` (normalized pull, 0 = slack), with a
-negative gear of ``MAX_TENDON_FORCE`` so that ``u = 1`` pulls with the largest safe force. A motor
-(force source, no position loop) is what a tendon driven by a torque-controlled winch does, and it
-keeps the map u -> shape quasi-static and smooth; the commands are already smooth (Catmull-Rom +
-slew limit).
-
-Timestep. ``implicitfast`` (MJX supports it; not ``implicit``) with dt = 1/120 s: the joint damping
-is integrated implicitly, which keeps the stiff, light distal joints stable at 4 physics substeps per
-control step (control at 30 Hz, 150 steps = 5 s of motion).
-
-The user is a capsule torso and a sphere head in front of the robot at +x, so reach, proximity and
-contact can be measured. Contacts are explicit ``<pair>``s of the torso with the distal segments
-(``CONTACT_SEGMENTS``): the only pairs that can touch.
+The model itself is built by :func:`jgrounding.sim.mjcf.build_xml` (geometry, tendons, actuators, the user; see
+that module). This module is only the command: the package imports :mod:`jgrounding.sim.mjcf`, never this one,
+so running it as a script does not import the module it runs a second time. The builder's names stay importable
+from here (``from jgrounding.sim import model``) for code written when they lived in this module.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from jgrounding.io import asset
-
-NUM_SEGMENTS = 10
-TRUNK_LENGTH = 0.70  # m
-BASE_HEIGHT = 1.10  # m, the trunk's root
-BASE_RADIUS, TIP_RADIUS = 0.045, 0.014  # m
-TIMESTEP = 1.0 / 120.0  # 1/60 s blows up (slides + light tip); 1/120 matches 1/240 within 1 mm
-MAX_TENDON_FORCE = 14.0  # N at u = 1: a strong curl, not a full coil
-ROOT_STIFFNESS, TIP_STIFFNESS = 7.0, 0.5  # N m / rad, geometric taper
-ROOT_DAMPING, TIP_DAMPING = 0.35, 0.03
-SLIDE_STIFFNESS = 2500.0  # N / m
-SLIDE_RANGE = 0.018  # m of compression per joint
-USER_TORSO_X = 0.40  # m in front of the trunk axis
-USER_TORSO_RADIUS = 0.14
-USER_TORSO_Z = (0.35, 1.05)  # capsule end points (z)
-USER_HEAD = (0.40, 0.0, 1.27, 0.11)  # x, y, z, radius
-# Contact pairs: the user's torso with the last CONTACT_SEGMENTS segments only. Measured with contact
-# off over every held and ramped command in {0, .35, .7, 1}^4 and the whole library, the proximal five
-# segments stay >= 5 cm from the torso and every point of the trunk >= 33 cm from the head, so the
-# pruned pairs could never touch; tests/sim/test_trunk.py checks it. 5 pairs instead of 20 (2 user geoms x
-# 10 segments) cut MJX's collision and constraint work (its cost grows with the number of pairs,
-# touching or not).
-CONTACT_SEGMENTS = 5
-
-DEFAULT_PATH = asset("trunk.xml")
-
-
-def _taper(a: float, b: float, i: int, n: int) -> float:
-    """Geometric interpolation from a (root) to b (tip) at joint i of n."""
-    return a * (b / a) ** (i / max(n - 1, 1))
-
-
-def segment_lengths(n: int = NUM_SEGMENTS) -> list[float]:
-    w = [1.0 - 0.45 * i / (n - 1) for i in range(n)]  # proximal segments longer
-    s = sum(w)
-    return [TRUNK_LENGTH * x / s for x in w]
-
-
-def build_xml(n: int = NUM_SEGMENTS, contact: bool = True, contact_segments: int = CONTACT_SEGMENTS) -> str:
-    """MJCF text of the trunk with ``n`` segments; contact pairs of the user's torso with the last
-    ``contact_segments`` segments (none with ``contact=False``)."""
-    lengths = segment_lengths(n)
-    lines = [
-        '<mujoco model="elephant_trunk">',
-        "  <!-- Generated by python -m jgrounding.sim.model; do not edit by hand. -->",
-        f'  <option timestep="{TIMESTEP:.8f}" integrator="implicitfast" iterations="4" ls_iterations="6"'
-        ' cone="pyramidal">',
-        '    <flag warmstart="disable"/>',
-        "  </option>",
-        "  <default>",
-        # No geom collides by default: the only contacts are the explicit <pair>s below.
-        '    <geom contype="0" conaffinity="0" friction="0.6 0.005 0.0001" solref="0.02 1" density="350"/>',
-        "  </default>",
-        '  <visual><global offwidth="640" offheight="480"/></visual>',
-        "  <asset>",
-        '    <texture name="grid" type="2d" builtin="checker" rgb1="0.82 0.82 0.82" rgb2="0.72 0.72 0.72"'
-        ' width="256" height="256"/>',
-        '    <material name="floor" texture="grid" texrepeat="8 8"/>',
-        '    <material name="skin" rgba="0.55 0.55 0.6 1"/>',
-        '    <material name="user" rgba="0.95 0.75 0.55 0.55"/>',
-        "  </asset>",
-        "  <worldbody>",
-        '    <light pos="0.3 -0.8 2.4" dir="-0.1 0.4 -1" diffuse="0.9 0.9 0.9"/>',
-        '    <geom name="floor" type="plane" size="2 2 0.01" material="floor" contype="0" conaffinity="0"/>',
-        f'    <geom name="head" type="sphere" size="0.12" pos="-0.05 0 {BASE_HEIGHT + 0.08:.3f}"'
-        ' rgba="0.5 0.5 0.55 1" contype="0" conaffinity="0"/>',
-        # The user is a static body so that a touch sensor over its volume reports contact force.
-        '    <body name="user" pos="0 0 0">',
-        f'      <geom name="user_torso" type="capsule" fromto="{USER_TORSO_X} 0 {USER_TORSO_Z[0]} '
-        f'{USER_TORSO_X} 0 {USER_TORSO_Z[1]}" size="{USER_TORSO_RADIUS}" material="user"/>',
-        f'      <geom name="user_head" type="sphere" pos="{USER_HEAD[0]} {USER_HEAD[1]} {USER_HEAD[2]}"'
-        f' size="{USER_HEAD[3]}" material="user"/>',
-        f'      <site name="user_volume" type="box" pos="{USER_TORSO_X} 0 0.85" size="0.3 0.3 0.6" rgba="0 0 0 0"/>',
-        "    </body>",
-    ]
-    indent = "    "
-    z = BASE_HEIGHT
-    for i in range(n):
-        L = lengths[i]
-        r = _taper(BASE_RADIUS, TIP_RADIUS, i, n)
-        k = _taper(ROOT_STIFFNESS, TIP_STIFFNESS, i, n)
-        d = _taper(ROOT_DAMPING, TIP_DAMPING, i, n)
-        pos = f"0 0 {z:.4f}" if i == 0 else f"0 0 {-lengths[i - 1]:.4f}"
-        lines.append(f'{indent}<body name="seg{i}" pos="{pos}">')
-        lines.append(
-            f'{indent}  <joint name="bx{i}" type="hinge" axis="1 0 0" stiffness="{k:.4f}"'
-            f' damping="{d:.4f}" range="-60 60" armature="0.0005"/>'
-        )
-        lines.append(
-            f'{indent}  <joint name="by{i}" type="hinge" axis="0 1 0" stiffness="{k:.4f}"'
-            f' damping="{d:.4f}" range="-60 60" armature="0.0005"/>'
-        )
-        lines.append(
-            f'{indent}  <joint name="sl{i}" type="slide" axis="0 0 1" stiffness="{SLIDE_STIFFNESS}"'
-            f' damping="8" range="0 {SLIDE_RANGE}" limited="true" armature="0.01"/>'
-        )
-        lines.append(
-            f'{indent}  <geom name="g{i}" type="capsule" fromto="0 0 0 0 0 {-L:.4f}" size="{r:.4f}" material="skin"/>'
-        )
-        lines.append(f'{indent}  <site name="s{i}" pos="0 0 0" size="0.005"/>')
-        indent += "  "
-    lines.append(f'{indent}<site name="tip" pos="0 0 {-lengths[-1]:.4f}" size="0.008"/>')
-    for i in reversed(range(n)):
-        indent = indent[:-2]
-        lines.append(f"{indent}</body>")
-    lines.append("  </worldbody>")
-    if contact:
-        # Contact pruning: only the distal segments can reach the user's torso, and nothing reaches the
-        # head (see CONTACT_SEGMENTS); the pairs carry the same friction / solref as the geoms.
-        lines.append("  <contact>")
-        for i in range(n - contact_segments, n):
-            lines.append(
-                f'    <pair geom1="user_torso" geom2="g{i}" condim="3" friction="0.6 0.6 0.005 0.0001 0.0001"'
-                ' solref="0.02 1"/>'
-            )
-        lines.append("  </contact>")
-    # Fixed tendons. A positive rotation about +y swings the hanging chain toward -x, about +x toward +y.
-    # Tendon j shortens when the trunk bends toward side j; all tendons shorten when the slides
-    # compress (slide q > 0 means compression here: its axis is +z, i.e. up the trunk).
-    sides = [("t0", "by", +1), ("t1", "bx", -1), ("t2", "by", -1), ("t3", "bx", +1)]
-    lines.append("  <tendon>")
-    for name, axis, sign in sides:
-        lines.append(f'    <fixed name="{name}">')
-        for i in range(n):
-            r = _taper(BASE_RADIUS, TIP_RADIUS, i, n)
-            lines.append(f'      <joint joint="{axis}{i}" coef="{sign * r:.5f}"/>')
-            lines.append(f'      <joint joint="sl{i}" coef="-1"/>')
-        lines.append("    </fixed>")
-    lines.append("  </tendon>")
-    lines.append("  <actuator>")
-    for name, _, _ in sides:
-        lines.append(
-            f'    <motor name="m_{name}" tendon="{name}" gear="{-MAX_TENDON_FORCE}" ctrlrange="0 1"'
-            ' ctrllimited="true"/>'
-        )
-    lines.append("  </actuator>")
-    # Sensors read by the native rollout (mujoco.rollout returns sensordata): the backbone (segment
-    # origins + tip), tendon lengths and the normal force on the user (touch over the user volume).
-    lines.append("  <sensor>")
-    for i in range(n):
-        lines.append(f'    <framepos name="p{i}" objtype="body" objname="seg{i}"/>')
-    lines.append('    <framepos name="ptip" objtype="site" objname="tip"/>')
-    for name, _, _ in sides:
-        lines.append(f'    <tendonpos name="len_{name}" tendon="{name}"/>')
-    lines.append('    <touch name="user_touch" site="user_volume"/>')
-    lines.append("  </sensor>")
-    lines.append("</mujoco>")
-    return "\n".join(lines) + "\n"
+from jgrounding.sim.mjcf import *  # noqa: F403  (the builder's names, for code that imports them from here)
+from jgrounding.sim.mjcf import DEFAULT_PATH, NUM_SEGMENTS, build_xml
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--out", default=str(DEFAULT_PATH))
-    p.add_argument("--segments", type=int, default=NUM_SEGMENTS)
+    p = argparse.ArgumentParser(description="Write the trunk's MJCF model (jgrounding/assets/trunk.xml).")
+    p.add_argument("--out", default=str(DEFAULT_PATH), help="where to write it (default: the shipped trunk.xml)")
+    p.add_argument("--segments", type=int, default=NUM_SEGMENTS, help=f"capsules (default {NUM_SEGMENTS})")
     args = p.parse_args(argv)
     from jgrounding.io import write_atomic
 

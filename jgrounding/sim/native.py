@@ -11,7 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim.measures import NUM_CHANNELS, NUM_POINTS, SUBSTEPS, Rollout, finish_rollout
 
 _SENSOR_TENDON = slice(3 * NUM_POINTS, 3 * NUM_POINTS + 4)

@@ -2,8 +2,10 @@
 
 - :func:`frames` renders RGB frames at chosen control steps from one or several camera azimuths.
 - :func:`render_posture` writes a PNG of the posture at one control step (default: the last).
-- :func:`render_motion` writes an animated GIF of the whole motion (every ``stride``-th control step).
-- :func:`render_keyframes` writes one PNG of the postures at a few moments (columns) from both views (rows).
+- :func:`render_motion` writes an animated GIF of the whole motion (t = 0, then every ``stride``-th control step),
+  each frame under a title (the text and its tuple, say) and its time stamp.
+- :func:`render_keyframes` writes one PNG of the postures at a few moments from t = 0 (columns) from both views
+  (rows), under a title.
 - :func:`plot_backbone` draws backbones ``(n_seg + 1, 3)`` on a matplotlib 3-D axis.
 
 Two views show every bending direction (the defaults of the posture and the GIF show both, side by
@@ -25,7 +27,7 @@ import mujoco
 import numpy as np
 
 from jgrounding import sim
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 
 log = logging.getLogger(__name__)
 WIDTH, HEIGHT = 480, 360
@@ -219,17 +221,51 @@ def _png(frame: np.ndarray, colors: int | None = None) -> bytes:
     return buf.getvalue()
 
 
-def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS) -> Path:
-    """PNG of the posture at control ``step`` of actuation ``(150, 4)`` (default: both views, labelled)."""
+def _titled(frame: np.ndarray, text: str, size: int = 15) -> np.ndarray:
+    """``frame`` under a white strip that carries ``text`` (dark, one or more lines): a picture's title."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    font = ImageFont.load_default(size=size)
+    lines = text.count("\n") + 1
+    strip = Image.new("RGB", (frame.shape[1], lines * (size + 4) + 10), (255, 255, 255))
+    ImageDraw.Draw(strip).multiline_text((8, 5), text, fill=(20, 20, 20), font=font, spacing=4)
+    return np.concatenate([np.asarray(strip), frame], axis=0)
+
+
+def _stamp(t: int) -> str:
+    """The time stamp of control step ``t``."""
+    return f"t = {t * sim.CONTROL_DT:.2f} s"
+
+
+def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS, title: str = "") -> Path:
+    """PNG of the posture at control ``step`` of actuation ``(150, 4)`` (default: both views, labelled),
+    under ``title`` and the step's time stamp."""
     from jgrounding.io import write_atomic
 
     n = np.asarray(u).shape[-2]
-    (img,), _ = frames(u, [step % n], azimuth, labels=True)
-    return write_atomic(path, _png(img))
+    step = step % n
+    (img,), _ = frames(u, [step], azimuth, labels=True)
+    return write_atomic(path, _png(_titled(img, f"{title}   {_stamp(step)}" if title else _stamp(step))))
 
 
-def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS) -> Path:
-    """Animated GIF of actuation ``(150, 4)``, one frame every ``stride`` control steps (default: both views).
+def motion_steps(n: int, stride: int = 5) -> list[int]:
+    """The control steps a GIF of ``n`` steps shows: t = 0, every ``stride``-th step, and the last."""
+    if n < 1 or stride < 1:
+        raise ValueError(f"need at least one control step and a stride >= 1, got n={n}, stride={stride}")
+    return sorted(set(range(0, n, stride)) | {n - 1})
+
+
+def motion_frames(u, stride: int = 5, azimuth=BOTH_VIEWS, title: str = "") -> tuple[list[int], list[np.ndarray]]:
+    """The frames of :func:`render_motion`: the control steps shown (from t = 0) and one RGB picture per step,
+    each under ``title`` and its time stamp."""
+    steps = motion_steps(np.asarray(u).shape[-2], stride)
+    imgs, _ = frames(u, steps, azimuth, labels=True)
+    return steps, [_titled(f, f"{title}   {_stamp(t)}" if title else _stamp(t)) for f, t in zip(imgs, steps)]
+
+
+def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS, title: str = "") -> Path:
+    """Animated GIF of actuation ``(150, 4)``, one frame every ``stride`` control steps from t = 0 to the last
+    step (default: both views), each frame under ``title`` (e.g. the text and its tuple) and its time stamp.
 
     The defaults play in real time (5 control steps of 1/30 s per frame at 6 frames per second).
     """
@@ -237,27 +273,27 @@ def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS
 
     from jgrounding.io import write_atomic
 
-    n = np.asarray(u).shape[-2]
-    imgs, _ = frames(u, list(range(0, n, stride)) + [n - 1], azimuth, labels=True)
+    _, imgs = motion_frames(u, stride, azimuth, title)
     pil = [Image.fromarray(f) for f in imgs]
     buf = io.BytesIO()
     pil[0].save(buf, format="GIF", save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
     return write_atomic(path, buf.getvalue())
 
 
-KEYFRAME_STEPS = (30, 60, 90, 120, 149)  # t = 1, 2, 3, 4, 5 s
+KEYFRAME_STEPS = (0, 30, 60, 90, 120, 149)  # t = 0, 1, 2, 3, 4, 5 s
 
 
-def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarray:
+def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6, title: str = "") -> np.ndarray:
     """One RGB picture of the postures of actuation ``(T, 4)`` at ``steps`` (columns) from each view (rows),
-    each tile ``scale`` times the frame size and labelled with its time (the first column with its view).
-    ``steps`` defaults to :data:`KEYFRAME_STEPS` (five moments, 1 s apart, for T = 150)."""
+    each tile ``scale`` times the frame size and labelled with its time (the first column with its view),
+    under ``title`` when one is given (e.g. the text and its tuple).
+    ``steps`` defaults to :data:`KEYFRAME_STEPS` (six moments, 1 s apart from t = 0, for T = 150)."""
     from PIL import Image
 
     views = _as_views(azimuth)
     if steps is None:
         n = np.asarray(u).shape[-2]
-        steps = KEYFRAME_STEPS if n == sim.NUM_STEPS else tuple(np.linspace(0, n - 1, 6).astype(int)[1:])
+        steps = KEYFRAME_STEPS if n == sim.NUM_STEPS else tuple(np.linspace(0, n - 1, 6).astype(int))
     imgs, _ = frames(u, list(steps), views)
     w, h = int(WIDTH * scale), int(HEIGHT * scale)
     rows = []
@@ -265,14 +301,15 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
         tiles = []
         for c, (img, t) in enumerate(zip(imgs, steps)):
             tile = np.asarray(Image.fromarray(img[:, v * WIDTH : (v + 1) * WIDTH]).resize((w, h), Image.LANCZOS))
-            text = f"t = {t * sim.CONTROL_DT:.1f} s" + (f"\n{VIEW_NAMES.get(a, f'azimuth {a:g}')}" if c == 0 else "")
+            text = _stamp(t) + (f"\n{VIEW_NAMES.get(a, f'azimuth {a:g}')}" if c == 0 else "")
             tiles.append(np.pad(_label(tile, text, size=13), ((0, 2), (0, 2), (0, 0)), constant_values=255))
         rows.append(np.concatenate(tiles, axis=1))
-    return np.concatenate(rows, axis=0)[:-2, :-2]
+    picture = np.concatenate(rows, axis=0)[:-2, :-2]
+    return _titled(picture, title) if title else picture
 
 
-def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS) -> Path:
-    """PNG of :func:`keyframes`: the motion of actuation ``(150, 4)`` at a glance."""
+def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS, title: str = "") -> Path:
+    """PNG of :func:`keyframes`: the motion of actuation ``(150, 4)`` at a glance, under ``title``."""
     from jgrounding.io import write_atomic
 
-    return write_atomic(path, _png(keyframes(u, steps, azimuth), colors=256))
+    return write_atomic(path, _png(keyframes(u, steps, azimuth, title=title), colors=256))

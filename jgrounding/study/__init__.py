@@ -3,7 +3,7 @@ every rating in a database, analyse it, and validate all of that with simulated 
 
 ``python -m jgrounding.study serve --design study.toml`` serves the operator's page (``/study/operator``) and the
 participant's (``/study/participant?p=ID``); ``analyze DB`` writes the report and the figure; ``export DB``
-writes CSV and Parquet with a data dictionary.
+writes CSV and Parquet with a data dictionary; ``simulate URL`` runs simulated participants through a running server.
 
 The modules, in the order they build on each other:
 
@@ -14,6 +14,7 @@ The modules, in the order they build on each other:
 - :mod:`jgrounding.study.analysis`: Wilson intervals, paired tests with Holm, effect sizes, order, power, figure;
 - :mod:`jgrounding.study.simulate`: simulated participants and :func:`validate` of the analysis;
 - :mod:`jgrounding.study.app`: :class:`StudyServer`, the pages, their API and the study's live stream;
+- :mod:`jgrounding.study.visit`: simulated participants through a running server's API (``simulate URL``);
 - :mod:`jgrounding.study.__main__`: the command line and :func:`serve`.
 """
 

@@ -1,4 +1,4 @@
-"""``python -m jgrounding.study serve|analyze|export`` (docs/study.md).
+"""``python -m jgrounding.study serve|analyze|export|simulate`` (docs/study.md).
 
 - ``serve --design study.toml [--db study.db | --db postgresql+psycopg://...]``: the study server (the
   operator's page at ``/study/operator``); a session stopped at any point resumes on the next start.
@@ -6,6 +6,9 @@
   ``report.md``, ``report.json``) and the figure (``positive_ratio.png``); withdrawn participants' ratings
   count unless ``--exclude-withdrawn``.
 - ``export DB --out DIR``: every table as CSV and Parquet, and the data dictionary.
+- ``simulate URL [--participants N] [--seed S] [--dropout P] [--token T]``: simulated participants through a
+  running study server (:mod:`jgrounding.study.visit`): enrolled, their episodes played on the live stream,
+  their ratings drawn from known distributions and stored like anyone's; then ``analyze`` reads them.
 """
 
 from __future__ import annotations
@@ -102,6 +105,15 @@ def main(argv=None) -> int:
     e.add_argument("db")
     e.add_argument("--out", required=True)
     e.add_argument("--session", type=int, default=None, help="session of ratings_long (default: the newest)")
+    m = sub.add_parser(
+        "simulate",
+        help="run simulated participants through a running study server (each episode plays in real time, 5 s)",
+    )
+    m.add_argument("url", help=f"the study server, e.g. http://localhost:{DEFAULT_PORT}")
+    m.add_argument("--participants", type=int, default=4, help="how many to enrol (default 4)")
+    m.add_argument("--seed", type=int, default=0, help="seed of their ratings (default 0)")
+    m.add_argument("--dropout", type=float, default=0.0, help="chance of leaving after each block (default 0)")
+    m.add_argument("--token", default=None, help="the server's token, if it has one")
     args = parser.parse_args(argv)
     from jgrounding.study.design import DesignError
 
@@ -110,6 +122,11 @@ def main(argv=None) -> int:
             serve(args.design, args.db, args.host, args.port, args.token, args.checkpoint)
         elif args.command == "analyze":
             analyze(args.db, args.out, args.session, args.exclude_withdrawn)
+        elif args.command == "simulate":
+            from jgrounding.study import visit
+
+            ids = visit.run(args.url, args.participants, args.seed, args.dropout, args.token)
+            print(f"{len(ids)} simulated participants rated; analyse with: python -m jgrounding.study analyze DB")
         else:
             from jgrounding.study.export import export
             from jgrounding.study.store import Store
@@ -117,7 +134,7 @@ def main(argv=None) -> int:
             store = Store(args.db)
             paths = export(store, args.out, _session(store, args.session))
             print("\n".join(str(p) for p in paths))
-    except (DesignError, ValueError) as e:
+    except (DesignError, ValueError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 0

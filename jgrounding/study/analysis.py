@@ -317,14 +317,39 @@ def analyze(
     }
 
 
+SMALL_SAMPLE = 10  # fewer complete pairs (or ratings) than this: the report warns that its numbers say little
+
+
+def small_sample_warnings(report: dict, below: int = SMALL_SAMPLE) -> list[str]:
+    """One line per comparison (and per condition's ratings) resting on fewer than ``below`` participants:
+    there a paired interval such as "100.0% [100.0%, 100.0%]" is an artefact of the sample size."""
+    out = []
+    for comp in report["comparisons"]:
+        n = min((t["pairs"] for t in comp["tests"]), default=0)
+        if n < below:
+            out.append(
+                f"small sample: {comp['b']} vs {comp['a']} rests on n = {n} complete pair{'s' * (n != 1)} "
+                f"(fewer than {below}): the tests have next to no power and the intervals are degenerate or wide; "
+                "read these rows as a check of the pipeline, not as evidence"
+            )
+    for cond in report["conditions"]:
+        n = min((r["n"] for r in report["descriptive"] if r["condition"] == cond), default=0)
+        if n < below:
+            out.append(f"small sample: {cond} has n = {n} rating{'s' * (n != 1)} per dimension (fewer than {below})")
+    return out
+
+
 def markdown(report: dict) -> str:
-    """The report as Markdown tables."""
+    """The report as Markdown tables, with a warning above them where a sample is small
+    (:func:`small_sample_warnings`)."""
     pct = lambda v: "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.1f}%"
     num = lambda v: "-" if isinstance(v, float) and math.isnan(v) else f"{v:.4g}"
     withdrawn = report.get("withdrawn", [])
     how = "excluded" if report.get("withdrawn_excluded") else "included"
     title = f"# Study analysis: {report['participants']} participants"
     out = [title + (f" ({len(withdrawn)} withdrawn, {how})" if withdrawn else ""), ""]
+    warnings = small_sample_warnings(report)
+    out += [f"> **Warning, {w}.**" for w in warnings] + ([""] if warnings else [])
     out += ["## Positive-rating ratio (ratings 4-5)"]
     out += ["", "| dimension | condition | n | positive | 95% Wilson | median [IQR] |", "|---|---|---|---|---|---|"]
     for r in report["descriptive"]:

@@ -60,3 +60,33 @@ def test_views_tile_and_the_matplotlib_fallback_draws_them():
         render.frames(u, [0], backend="opengl")
     with pytest.raises(ValueError, match="steps"):
         render.frames(u, [60])
+
+
+def _strip_rows(img: np.ndarray) -> int:
+    """Rows of white title strip above the picture (the first rows that are mostly white)."""
+    white = (img > 240).all(-1).mean(1) > 0.6
+    return int(np.argmin(white)) if not white.all() else len(white)
+
+
+def test_the_gif_starts_at_t0_and_every_frame_carries_the_title_and_its_time():
+    assert render.motion_steps(150)[:2] == [0, 5] and render.motion_steps(150)[-1] == 149
+    u = held([0.4, 0, 0, 0.2])
+    steps, imgs = render.motion_frames(u, stride=20, title='"wave hello" -> (greeting, moderate)')
+    assert steps == [0, 20, 40, 59]
+    assert all(img.shape[0] > render.HEIGHT for img in imgs)  # a title strip above each frame
+    strip = [img[: img.shape[0] - render.HEIGHT] for img in imgs]
+    assert all((s < 128).any() for s in strip), "the title strip has no text"
+    assert not np.array_equal(strip[0], strip[1]), "the time stamp does not change between frames"
+    _, plain = render.motion_frames(u, stride=20)
+    assert not np.array_equal(strip[0], plain[0][: plain[0].shape[0] - render.HEIGHT])  # the title is written
+    with pytest.raises(ValueError, match="stride"):
+        render.motion_steps(150, stride=0)
+
+
+def test_keyframes_start_at_t0_and_carry_a_title():
+    assert render.KEYFRAME_STEPS[0] == 0 and render.KEYFRAME_STEPS[-1] == sim.NUM_STEPS - 1
+    u = held([0.3, 0.3, 0, 0], steps=sim.NUM_STEPS)
+    plain = render.keyframes(u, azimuth=render.SIDE_VIEW)
+    titled = render.keyframes(u, azimuth=render.SIDE_VIEW, title="(nodding, subtle)")
+    assert plain.shape[1] == titled.shape[1] and titled.shape[0] > plain.shape[0]
+    assert plain.shape[1] >= len(render.KEYFRAME_STEPS) * int(render.WIDTH * 0.6)  # one column per moment

@@ -117,7 +117,7 @@ def test_contact_pruning_is_exact():
     """Only the distal segments have contact pairs with the user: the others can never reach it."""
     import itertools
 
-    from jgrounding.sim import model as tm
+    from jgrounding.sim import mjcf as tm
 
     levels = [np.array(c, float) for c in itertools.product([0, 0.5, 1.0], repeat=4)]
     ramp = np.clip(np.linspace(0, 1.5, 150), 0, 1)[:, None]

@@ -1,4 +1,4 @@
-"""Bring your own demonstrations: a folder of recorded trunk motions -> a library npz (issue #18).
+"""Bring your own demonstrations: a folder of recorded trunk motions -> a library npz.
 
 ``python -m jgrounding.library import DIR --out my_library.npz [--controls P] [--simulate]``
 
