@@ -321,6 +321,22 @@ def _replace_block(text: str, start: str, end: str, body: str, where: Path) -> s
     return f"{head}{start}\n{body}\n{end}{tail}"
 
 
+def gpu_block(path: Path) -> str:
+    """results/gpu.md for docs/versions.md, said to be from another stack (or a tiny CPU run) when it is."""
+    import jax
+
+    text = path.read_text().strip()
+    if "Tiny run (CI)" in text:
+        return "Not measured: no accelerator run has been recorded; the file holds the CPU's tiny run.\n\n" + text
+    if f"jax {jax.__version__}," not in text.split("\n#### ")[0]:
+        return (
+            f"**Not measured on the current stack (jax {jax.__version__}): no accelerator was lent since it became "
+            "the default, so MJX-Warp and the goals above are unmeasured.** The last accelerator run, on an earlier "
+            "stack and with MJX's JAX implementation only:\n\n" + text.replace("### ", "#### ", 1)
+        )
+    return text
+
+
 def update(
     readme: Path = ROOT / "README.md",
     versions: Path = ROOT / "docs" / "versions.md",
@@ -351,6 +367,15 @@ def update(
             ),
         )
         print(f"updated the trunk benchmark in {versions}")
+    gpu = RESULTS / "gpu.md"  # bash scripts/device_check.sh
+    if versions.exists() and gpu.exists() and "<!-- bench:gpu:start -->" in versions.read_text():
+        write_atomic(
+            versions,
+            _replace_block(
+                versions.read_text(), "<!-- bench:gpu:start -->", "<!-- bench:gpu:end -->", gpu_block(gpu), versions
+            ),
+        )
+        print(f"updated the accelerator figures in {versions}")
     bisect = RESULTS / "mjx_compile_bisect.md"  # python -m experiments.bench trunk --bisect
     if versions.exists() and bisect.exists() and "<!-- bench:bisect:start -->" in versions.read_text():
         write_atomic(
