@@ -184,18 +184,28 @@ def run(args: argparse.Namespace) -> int:
         say("tuple", f"tuple: ({intent}, {intensity}) {given}", intent=intent, intensity=intensity)
         confidence = None
     else:
+        ms = 1e3 * (time.perf_counter() - t0)
+        confidence = float(g.confidence)
+        if decision.hold:  # what a held text shows first: the reason; the tuple only as "nearest", after it
+            say(
+                "holding",
+                f"{decision.message(args.current)} (use --force to drive the tuple)",
+                reason=decision.reason,
+                hold_still=True,
+            )
         if decision.note:
             say("restricted", f"note: {decision.note}", note=decision.note)
-        confidence = float(g.confidence)
         say(
             "tuple",
-            f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
-            f"backend {g.backend}  [{1e3 * (time.perf_counter() - t0):.0f} ms]",
+            f"  {decision.nearest}  backend {g.backend}  [{ms:.0f} ms]"
+            if decision.hold
+            else f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  backend {g.backend}  [{ms:.0f} ms]",
             intent=intent,
             intensity=intensity,
             confidence=confidence,
             backend=g.backend,
             confident=g.confident,
+            nearest=decision.hold,
         )
         if decision.forced:
             say(
@@ -217,7 +227,6 @@ def run(args: argparse.Namespace) -> int:
     hold = decision.hold
     u = np.asarray(outcome.u).reshape((-1,) + np.shape(outcome.u)[-2:])
     if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give
-        say("warning", f"{outcome.message} (use --force to drive the tuple)", reason=decision.reason, hold_still=True)
         say(
             "hold",
             f"hold still: {u.shape[0]} constant command streams of shape {u.shape[1:]}",
@@ -256,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
         **({"hold_still": True} if hold else {}),
     )
     title = (
-        f"holding still at the current command (grounded {intent} / {intensity}, not confident)"
+        f"holding still at the current command (nearest {intent} / {intensity}, not acted on)"
         if hold
         else f"{intent} / {intensity}"
     )

@@ -68,7 +68,11 @@ def snap(g: Grounding, tuples, checkpoint) -> tuple[Grounding, str | None]:
         f"({_names(tuples)}); its nearest is ({INTENTS[m]}, {INTENSITIES[z]}){score}"
     )
     confidence = float(scores[m]) if scores else 0.0
-    reason = g.reason if g.no_motion else f"asked for {asked}, which this checkpoint never learned"
+    reason = (
+        g.reason
+        if g.no_motion
+        else f"asked for {asked}, which this checkpoint never learned; it knows {_names(tuples)}"
+    )
     snapped = dataclasses.replace(
         g, intent=INTENTS[m], intensity=INTENSITIES[z], confidence=confidence, confident=False, reason=reason
     )
@@ -100,8 +104,17 @@ class Decision:
         return bool(self.reason) and not self.hold
 
     def message(self, current=safety.REST) -> str | None:
-        """``"holding still: <reason>; <what the trunk keeps>"`` when holding still at ``current``, else None."""
+        """``"holding still: <reason>; <what the trunk keeps>"`` when holding still at ``current``, else None: what
+        every front end shows first for a held text."""
         return f"holding still: {self.reason}; {held(current)}" if self.hold else None
+
+    @property
+    def nearest(self) -> str | None:
+        """``"nearest: (intent, intensity), p = 0.55"`` for a held text: the tuple it was not acted on, which the
+        front ends show only after :meth:`message`, in small print; None when not holding a text."""
+        if not self.hold or self.grounding is None:
+            return None
+        return f"nearest: ({self.intent}, {self.intensity}), p = {self.grounding.confidence:.2f}"
 
 
 @dataclasses.dataclass(frozen=True)
