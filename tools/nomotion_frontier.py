@@ -38,7 +38,8 @@ def records(sets: dict[str, list[dict]]) -> dict:
     text's), ``confidence`` (an order's: :func:`jgrounding.semantics.decision.order_confidence`), ``reducer_held``
     (the head's caveats or no-behaviour class), ``overridable`` (held only by the no-behaviour class, which an order
     overrides), ``rule`` (the rule would hold), ``chosen`` (a clause chooses a motion), ``detector`` (the learned
-    detector's p), ``kind``, ``set``, and the texts."""
+    detector's p), ``kind``, ``set``, ``style`` (the writer's: ``situation`` or ``outright``, every other style, as
+    ``experiments.bench_acting`` groups the frozen benches), and the texts."""
     from jgrounding.semantics import decision, embedded, nomotion, structure
 
     det = nomotion.detector()
@@ -46,7 +47,7 @@ def records(sets: dict[str, list[dict]]) -> dict:
         raise SystemExit("the shipped detector is off (made for another head): retrain it with tools.train_nomotion")
     keys = ("motion", "right", "confidence", "reducer_held", "overridable", "rule", "chosen", "detector", "kind")
     cols = {k: [] for k in keys}
-    cols |= {"set": [], "text": []}
+    cols |= {"set": [], "style": [], "text": []}
     n = sum(len(items) for items in sets.values())
     done = 0
     for name, items in sets.items():
@@ -65,6 +66,10 @@ def records(sets: dict[str, list[dict]]) -> dict:
             cols["detector"].append(float(det.probability(vectors[0][None])[0]))
             cols["kind"].append(k)
             cols["set"].append(name)
+            style = it.get("style")
+            cols["style"].append(
+                "none" if it["intent"] == "none" else "situation" if style == "situation" else "outright"
+            )
             cols["text"].append(text)
             done += 1
             if done % 250 == 0 or done == n:
@@ -75,10 +80,17 @@ def records(sets: dict[str, list[dict]]) -> dict:
 def held(r: dict, thresholds: dict, detector: float) -> np.ndarray:
     """Which texts the decision holds at a point (``thresholds`` per kind, the detector's threshold): the same
     decision as :func:`jgrounding.semantics.decision.decide`, on :func:`records`' arrays."""
+    no_motion, unsure = held_parts(r, thresholds, detector)
+    return no_motion | unsure
+
+
+def held_parts(r: dict, thresholds: dict, detector: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`held` in its two parts: held by the no-motion decision (the rule, the detector, the head's caveats and
+    no-behaviour class), and held by the threshold of the text's kind (the rest of the holds)."""
     no_motion = (r["rule"] | (r["detector"] >= detector)) & ~r["chosen"]
-    reducer = r["reducer_held"] & ~((r["kind"] == "order") & r["overridable"])
+    no_motion |= r["reducer_held"] & ~((r["kind"] == "order") & r["overridable"])
     t = np.array([thresholds[k] for k in r["kind"]], float) if len(r["kind"]) else np.zeros(0)
-    return no_motion | reducer | (r["confidence"] < t)
+    return no_motion, ~no_motion & (r["confidence"] < t)
 
 
 def costs(r: dict, hold: np.ndarray) -> np.ndarray:
@@ -165,6 +177,12 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
         hold = held(r, t, d)
         res[label] = {"thresholds": t, "detector": d, "all": figures(r, hold)}
         res[label] |= {f"kind {k}": figures(r, hold, r["kind"] == k) for k in KINDS}
+        res[label] |= {f"style {s}": figures(r, hold, r["style"] == s) for s in ("outright", "situation")}
+        by_no_motion, by_threshold = held_parts(r, t, d)
+        for s in ("outright", "situation"):
+            m = r["style"] == s
+            res[label][f"style {s}"]["held_by_no_motion"] = float(by_no_motion[m].mean())
+            res[label][f"style {s}"]["held_by_threshold"] = float(by_threshold[m].mean())
         res[label] |= {f"set {s}": figures(r, hold, r["set"] == s) for s in dict.fromkeys(r["set"].tolist())}
     f = bs._fmt
     lines = [
@@ -188,6 +206,11 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
             f"| {g} | {c['n_motion']} / {c['n_none']} | {pair('cost')} | {pair('acted_right')} | "
             f"{pair('held_motion')} | {pair('acted_wrong')} | {pair('none_held')} |"
         )
+    why = ["| motion texts (writer's style) | held by the no-motion decision | held by the threshold | acted wrong |"]
+    why.append("|---|---|---|---|")
+    for st in ("outright", "situation"):
+        c = res["chosen"][f"style {st}"]
+        why.append(f"| {st} | {f(c['held_by_no_motion'])} | {f(c['held_by_threshold'])} | {f(c['acted_wrong'])} |")
     det = [
         "| detector threshold | best kind thresholds (order / chosen / situation) | expected cost |",
         "|---|---|---|",
@@ -205,6 +228,8 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
             "One threshold: the head's calibrated threshold for every kind and the detector's own threshold. By kind "
             "of text (the decision's own split, `decision.kind`) and by dev set, one threshold / chosen:\n\n"
             + "\n".join(by),
+            "What holds the motion texts at the chosen point, by the writer's style (outright: every style but "
+            "situation-only):\n\n" + "\n".join(why),
             "The least cost at each detector threshold (each kind's threshold chosen for it):\n\n" + "\n".join(det),
         ]
     )
