@@ -119,6 +119,7 @@ def figures(r: dict, hold: np.ndarray, mask=None) -> dict:
         "n_motion": int(m.sum()),
         "n_none": int(nm.sum()),
         "cost": float(costs(r, hold)[mask].mean()) if mask.any() else None,
+        "intent": share(r["right"], m),
         "acted_right": share(acted & r["right"], m),
         "held_motion": share(hold, m),
         "acted_wrong": share(acted & ~r["right"], m),
@@ -206,11 +207,15 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
             f"| {g} | {c['n_motion']} / {c['n_none']} | {pair('cost')} | {pair('acted_right')} | "
             f"{pair('held_motion')} | {pair('acted_wrong')} | {pair('none_held')} |"
         )
-    why = ["| motion texts (writer's style) | held by the no-motion decision | held by the threshold | acted wrong |"]
-    why.append("|---|---|---|---|")
+    why = [
+        "| motion texts (writer's style) | right intent, acted or not | acted right | held by the no-motion decision "
+        "| held by the threshold | acted wrong |"
+    ]
+    why.append("|---|---|---|---|---|---|")
     for st in ("outright", "situation"):
         c = res["chosen"][f"style {st}"]
-        why.append(f"| {st} | {f(c['held_by_no_motion'])} | {f(c['held_by_threshold'])} | {f(c['acted_wrong'])} |")
+        cells = [c[k] for k in ("intent", "acted_right", "held_by_no_motion", "held_by_threshold", "acted_wrong")]
+        why.append(f"| {st} | " + " | ".join(f(x) for x in cells) + " |")
     det = [
         "| detector threshold | best kind thresholds (order / chosen / situation) | expected cost |",
         "|---|---|---|",
