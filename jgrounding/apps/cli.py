@@ -14,8 +14,10 @@ simulates the candidates on the trunk and keeps only feasible ones (stable, cont
 near the user within bounds), reporting how many were rejected. ``--jsonl`` prints one JSON object per
 event for scripts; ``--quiet`` prints only the output folder. The decision is the one every front end makes
 (:class:`jgrounding.policy.respond.Responder`): with ``--checkpoint``, grounding chooses among the checkpoint's
-tuples; a grounding below the calibrated confidence threshold does not drive the trunk: the command stream holds
-still at ``--current`` and the screen says why ("holding still: ..."); ``--force`` drives the grounded tuple anyway.
+tuples; a text the act/hold decision holds (:mod:`jgrounding.semantics.decision`: it calls for no motion, or its
+grounding is below its kind of text's threshold) does not drive the trunk: the command stream holds still at
+``--current`` and the screen says why first ("holding still: <reason>"), the tuple only after it as "nearest";
+``--force`` drives the grounded tuple anyway.
 """
 
 from __future__ import annotations
@@ -115,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--force",
         action="store_true",
-        help="drive the grounded tuple even when its confidence is below the calibrated threshold",
+        help="drive the grounded tuple even when the text is held (no motion called for, or unsure which motion)",
     )
     p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
     p.add_argument(

@@ -49,7 +49,7 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     p.add_argument("--backend", choices=("embedded", "cues", "mllm"), default="embedded")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--screen", action="store_true", help="keep only samples feasible on the simulated trunk")
-    p.add_argument("--force", action="store_true", help="drive groundings below the confidence threshold too")
+    p.add_argument("--force", action="store_true", help="drive held texts' groundings too")
     p.add_argument(
         "--checkpoint",
         metavar="DIR",

@@ -8,8 +8,9 @@ CLI, the interactive loop, the server and its 30 Hz stream:
    recorded): another intensity of a learned intent moves to the nearest learned one; an intent the checkpoint
    never learned is named and is not confident;
 3. the decision (:class:`Decision`): a grounding that is not confident holds still, with its reason, unless
-   forced (among them a text the explicit no-motion rule holds, :mod:`jgrounding.semantics.nomotion`:
-   ``grounding.no_motion`` names why); a tuple given directly always moves;
+   forced (the act/hold decision of :mod:`jgrounding.semantics.decision` made it: a text that calls for no motion,
+   ``grounding.no_motion`` naming why, or one below its kind of text's threshold); a tuple given directly always
+   moves. A held text shows :meth:`Decision.message` first and its tuple only after it, as :attr:`Decision.nearest`;
 4. the trajectory: sampled by the public sampler (:func:`jgrounding.policy.sampling.sample`, the safety gate),
    or, when holding still, the current command held through the same gate (:meth:`Responder.hold`).
 
