@@ -3,6 +3,7 @@ text and the learned no-motion detector's threshold (:mod:`jgrounding.semantics.
 
     python -m tools.nomotion_frontier            # print the frontier and the chosen point, write results/nomotion_frontier.*
     python -m tools.nomotion_frontier --write    # ... and ship the chosen point (jgrounding/assets/operating_point.json)
+    python -m tools.nomotion_frontier --check    # exit 1 when the shipped point is not the one dev chooses (writes nothing)
     python -m tools.nomotion_frontier --quick    # a few texts of each set (a smoke run; writes nothing unless --out)
 
 The costs are :data:`jgrounding.semantics.decision.COSTS` (a motion text held 1, a no-motion text acted on 3, a wrong
@@ -139,9 +140,9 @@ def choose(r: dict) -> tuple[dict, float, list]:
         for k in KINDS:
             mine = r["kind"] == k
             totals = [costs(r, held(r, dict.fromkeys(KINDS, t), d))[mine].sum() for t in GRID]
-            best[k] = middle(GRID, totals)
+            best[k] = float(middle(GRID, totals))
         rows.append((best, d, float(costs(r, held(r, best, d)).mean())))
-    detector = middle([d for _, d, _ in rows], [c for _, _, c in rows])
+    detector = float(middle([d for _, d, _ in rows], [c for _, _, c in rows]))
     return next(t for t, d, _ in rows if d == detector), detector, rows
 
 
@@ -273,10 +274,13 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default=None, help=f"write OUT.md, OUT.json and OUT.png (default {OUT}; --quick: none)")
     p.add_argument("--write", action="store_true", help="ship the chosen point: jgrounding/assets/operating_point.json")
+    p.add_argument("--check", action="store_true", help="exit 1 when the shipped point is not the chosen one")
     p.add_argument("--quick", action="store_true", help="eight texts of each set (a smoke run)")
     args = p.parse_args(argv)
-    if args.quick and args.write:
-        p.error("--quick fits on a few texts: it cannot --write the shipped point")
+    if args.quick and (args.write or args.check):
+        p.error("--quick fits on a few texts: it cannot --write or --check the shipped point")
+    if args.check and args.write:
+        p.error("--check compares the shipped point with the chosen one: drop --write")
     from jgrounding.io import write_atomic
     from jgrounding.semantics import decision
     from jgrounding.semantics import head as sh
@@ -292,6 +296,10 @@ def main(argv=None) -> int:
     frontier = sweep(r, thresholds, detector)
     md, payload = report(r, shipped, (thresholds, detector), rows, frontier)
     print(md)
+    if args.check:
+        same = shipped.thresholds == thresholds and shipped.detector == detector
+        print(f"the shipped point {'is' if same else 'is NOT'} the one dev chooses ({thresholds}, detector {detector})")
+        return 0 if same else 1
     out = None if args.quick and args.out is None else Path(args.out or OUT)
     if out is not None:
         write_atomic(out.with_suffix(".md"), md)

@@ -64,3 +64,15 @@ def test_the_report_names_the_costs_and_every_point(small):
     )
     assert all(f"**{v:g}**" in md for v in decision.COSTS.values())
     assert set(payload["points"]) == {"one threshold", "shipped", "chosen"}
+
+
+def test_quick_writes_nothing_and_cannot_write_or_check(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    before = sorted(nf.OUT.parent.glob("nomotion_frontier.*"))
+    stamps = [p.stat().st_mtime_ns for p in before]
+    assert nf.main(["--quick"]) == 0
+    assert "| chosen |" in capsys.readouterr().out
+    assert [p.stat().st_mtime_ns for p in before] == stamps
+    for flag in ("--write", "--check"):
+        with pytest.raises(SystemExit):
+            nf.main(["--quick", flag])
