@@ -32,6 +32,7 @@ from tools import semantics_system_dev as sd
 GRID = tuple(round(x, 3) for x in np.arange(0.0, 1.0, 0.025)) + (1.01,)  # 1.01: that kind never acts
 DETECTOR_GRID = (0.1, 0.2, 0.3, 0.4, 0.5, 0.5375, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99, 1.01)  # 1.01: the rule alone
 OUT = bs.RESULTS / "nomotion_frontier"
+BEFORE = "one threshold"  # the decision before it was per kind: the head's threshold on its own confidence
 
 
 def records(sets: dict[str, list[dict]]) -> dict:
@@ -46,7 +47,18 @@ def records(sets: dict[str, list[dict]]) -> dict:
     det = nomotion.detector()
     if det is None:
         raise SystemExit("the shipped detector is off (made for another head): retrain it with tools.train_nomotion")
-    keys = ("motion", "right", "confidence", "reducer_held", "overridable", "rule", "chosen", "detector", "kind")
+    keys = (
+        "motion",
+        "right",
+        "confidence",
+        "head_confidence",
+        "reducer_held",
+        "overridable",
+        "rule",
+        "chosen",
+        "detector",
+        "kind",
+    )
     cols = {k: [] for k in keys}
     cols |= {"set": [], "style": [], "text": []}
     n = sum(len(items) for items in sets.values())
@@ -60,6 +72,7 @@ def records(sets: dict[str, list[dict]]) -> dict:
             cols["motion"].append(it["intent"] != "none")
             cols["right"].append(g.intent == it["intent"])
             cols["confidence"].append(decision.order_confidence(g, named) if k == "order" else g.confidence)
+            cols["head_confidence"].append(g.confidence)
             cols["reducer_held"].append(not g.confident)
             cols["overridable"].append(decision.reads_as_no_behaviour(text, g))
             cols["rule"].append(nomotion.rule(text, st) is not None)
@@ -92,6 +105,13 @@ def held_parts(r: dict, thresholds: dict, detector: float) -> tuple[np.ndarray, 
     no_motion |= r["reducer_held"] & ~((r["kind"] == "order") & r["overridable"])
     t = np.array([thresholds[k] for k in r["kind"]], float) if len(r["kind"]) else np.zeros(0)
     return no_motion, ~no_motion & (r["confidence"] < t)
+
+
+def held_parts_before(r: dict, threshold: float, detector: float) -> tuple[np.ndarray, np.ndarray]:
+    """The decision before it was made per kind of text, in :func:`held_parts`' two parts: one ``threshold`` on the
+    head's own confidence for every text, and no order overriding the head's no-behaviour class."""
+    no_motion = ((r["rule"] | (r["detector"] >= detector)) & ~r["chosen"]) | r["reducer_held"]
+    return no_motion, ~no_motion & (r["head_confidence"] < threshold)
 
 
 def costs(r: dict, hold: np.ndarray) -> np.ndarray:
@@ -172,15 +192,15 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
     from jgrounding.semantics.decision import COST_REASONS, COSTS, KINDS
 
     one = decision.fallback_point()
-    points = {"one threshold": (one.thresholds, one.detector), "shipped": (shipped.thresholds, shipped.detector)}
+    points = {BEFORE: (one.thresholds, one.detector), "shipped": (shipped.thresholds, shipped.detector)}
     points["chosen"] = chosen
     res = {}
     for label, (t, d) in points.items():
-        hold = held(r, t, d)
+        by_no_motion, by_threshold = held_parts_before(r, t[KINDS[0]], d) if label == BEFORE else held_parts(r, t, d)
+        hold = by_no_motion | by_threshold
         res[label] = {"thresholds": t, "detector": d, "all": figures(r, hold)}
         res[label] |= {f"kind {k}": figures(r, hold, r["kind"] == k) for k in KINDS}
         res[label] |= {f"style {s}": figures(r, hold, r["style"] == s) for s in ("outright", "situation")}
-        by_no_motion, by_threshold = held_parts(r, t, d)
         for s in ("outright", "situation"):
             m = r["style"] == s
             res[label][f"style {s}"]["held_by_no_motion"] = float(by_no_motion[m].mean())
@@ -202,7 +222,7 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
     ]
     by.append("|---|---|---|---|---|---|---|")
     for g in [k for k in res["chosen"] if k != "all" and k not in ("thresholds", "detector")]:
-        s, c = res["one threshold"][g], res["chosen"][g]
+        s, c = res[BEFORE][g], res["chosen"][g]
         pair = lambda k: f"{f(s[k])} / {f(c[k])}"  # noqa: E731
         by.append(
             f"| {g} | {c['n_motion']} / {c['n_none']} | {pair('cost')} | {pair('acted_right')} | "
@@ -231,9 +251,10 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
             "as `jg.ground` grounds it; no frozen bench read. The costs:\n\n" + costs_md,
             "![frontier](nomotion_frontier.png)",
             "\n".join(lines),
-            "One threshold: the head's calibrated threshold for every kind and the detector's own threshold. By kind "
-            "of text (the decision's own split, `decision.kind`) and by dev set, one threshold / chosen:\n\n"
-            + "\n".join(by),
+            "One threshold: the decision as `jg.ground` made it before it was made per kind of text, the head's "
+            "calibrated threshold on its own confidence for every text (no order's reading among the gestures it "
+            "names, no order overriding the no-behaviour class) and the detector's own threshold. By kind of text "
+            "(the decision's own split, `decision.kind`) and by dev set, one threshold / chosen:\n\n" + "\n".join(by),
             "What holds the motion texts at the chosen point, by the writer's style (outright: every style but "
             "situation-only):\n\n" + "\n".join(why),
             "The least cost at each detector threshold (each kind's threshold chosen for it):\n\n" + "\n".join(det),
@@ -258,7 +279,7 @@ def figure(frontier, res, path) -> None:
     x = [fg["held_motion"] for _, fg in frontier]
     ax.plot(x, [1 - fg["none_held"] for _, fg in frontier], "o-", ms=3, label="no-motion texts acted on")
     ax.plot(x, [fg["acted_wrong"] for _, fg in frontier], "s-", ms=3, label="motion texts acted on, wrong intent")
-    for label, marker in (("one threshold", "x"), ("chosen", "*")):
+    for label, marker in ((BEFORE, "x"), ("chosen", "*")):
         a = res[label]["all"]
         ax.plot([a["held_motion"]], [1 - a["none_held"]], marker, color="k", ms=9, label=f"{label} point")
         ax.plot([a["held_motion"]], [a["acted_wrong"]], marker, color="k", ms=9)

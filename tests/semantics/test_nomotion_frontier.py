@@ -76,3 +76,14 @@ def test_quick_writes_nothing_and_cannot_write_or_check(tmp_path, monkeypatch, c
     for flag in ("--write", "--check"):
         with pytest.raises(SystemExit):
             nf.main(["--quick", flag])
+
+
+def test_the_one_threshold_row_is_the_decision_before_it_was_per_kind(small):
+    """The row the chosen point is compared with is jg.ground's decision before (experiments.bench_acting's
+    ``before``, which reproduces it from the same pass)."""
+    from experiments import bench_acting
+
+    one = decision.fallback_point()
+    hold = np.logical_or(*nf.held_parts_before(small, one.thresholds["order"], one.detector))
+    for text, h in zip(small["text"], hold):
+        assert (not bench_acting.before_and_after(str(text))[0].confident) == h, text
