@@ -204,6 +204,15 @@ class Stream:
         return self.stats
 
 
+def shown(reply: dict) -> str:
+    """What a text's reply says first: "holding still: <reason>; ..." with the tuple after it in small print
+    ("nearest: ...") for a held text, else the grounded tuple and its confidence."""
+    g = reply["grounding"]
+    if reply.get("hold_still"):
+        return f"{reply['message']}\n  ({g.get('nearest') or 'nearest: ' + g['intent'] + ', ' + g['intensity']})"
+    return f"grounding: ({g['intent']}, {g['intensity']})  confidence {g['confidence']:.2f}  acting on it"
+
+
 def summarize(u: np.ndarray) -> str:
     """A few lines on a ``(T, N_u)`` trajectory: duration, range and the busiest tendon."""
     u = np.asarray(u).reshape(-1, *np.shape(u)[-2:])[0]
@@ -235,11 +244,8 @@ def main(argv: list[str] | None = None) -> int:
             t0 = time.perf_counter()
             r = c.sample(args.text, num_samples=args.samples, steps=args.steps)
             ms = 1e3 * (time.perf_counter() - t0)
-            g, m = r["grounding"], r["model"]
-            print(
-                f"grounding: ({g['intent']}, {g['intensity']})  confidence {g['confidence']:.2f}  "
-                f"{'confident' if g['confident'] else 'NOT confident: holding still'}"
-            )
+            m = r["model"]
+            print(shown(r))
             print(
                 f"model: {m['checkpoint']} ({m['method']}), library {m['library_version']}, "
                 f"jgrounding {m['package_version']}  [{ms:.1f} ms round trip]"

@@ -154,14 +154,16 @@ def main(argv=None) -> int:
         "--rule", choices=sorted(RULES), default="calibration", help="which change's ship rule --compare applies"
     )
     args = p.parse_args(argv)
+    from jgrounding.semantics import decision
     from jgrounding.semantics import head as sh
 
     head = sh.load()
     knn = head.knn["meta"] if head.knn else {}
+    point = decision.point()
     print(
         f"jg.ground on the dev sets ({bs.machine()}): head {head.meta['params_digest']},"
         f" vote {knn.get('digest', 'none')} (situation temperature {knn.get('situation_temperature', 1.0):.3f}),"
-        f" threshold {head.threshold:.3f}"
+        f" head threshold {head.threshold:.3f}, thresholds per kind {point.thresholds} (detector {point.detector})"
     )
     res = evaluate()
     for name, r in res.items():

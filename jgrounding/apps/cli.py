@@ -16,8 +16,10 @@ near the user within bounds), reporting how many were rejected. ``--jsonl`` prin
 event for scripts; ``--quiet`` prints only the output folder. The files go to ``--out`` (default
 ``grounding_out/`` in the current folder). The decision is the one every front end makes
 (:class:`jgrounding.policy.respond.Responder`): with ``--checkpoint``, grounding chooses among the checkpoint's
-tuples; a grounding below the calibrated confidence threshold does not drive the trunk: the command stream holds
-still at ``--current`` and the screen says why ("holding still: ..."); ``--force`` drives the grounded tuple anyway.
+tuples; a text the act/hold decision holds (:mod:`jgrounding.semantics.decision`: it calls for no motion, or its
+grounding is below its kind of text's threshold) does not drive the trunk: the command stream holds still at
+``--current`` and the screen says why first ("holding still: <reason>"), the tuple only after it as "nearest";
+``--force`` drives the grounded tuple anyway.
 """
 
 from __future__ import annotations
@@ -75,7 +77,7 @@ def picture_title(text: str | None, intent: str, intensity: str, hold: bool = Fa
     tuple alone when it was given; a held (not confident) grounding says so."""
     tuple_ = f"({intent}, {intensity})"
     if hold:
-        tuple_ = f"holding still (grounded {tuple_}, not confident)"
+        tuple_ = f"holding still (nearest {tuple_}, not acted on)"
     if not text:
         return tuple_
     text = " ".join(text.split())
@@ -136,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--force",
         action="store_true",
-        help="drive the grounded tuple even when its confidence is below the calibrated threshold",
+        help="drive the grounded tuple even when the text is held (no motion called for, or unsure which motion)",
     )
     p.add_argument("--no-render", action="store_true", help="skip the simulated motion (faster)")
     p.add_argument(
@@ -209,18 +211,28 @@ def run(args: argparse.Namespace) -> int:
         say("tuple", f"tuple: ({intent}, {intensity}) {given}", intent=intent, intensity=intensity)
         confidence = None
     else:
+        ms = 1e3 * (time.perf_counter() - t0)
+        confidence = float(g.confidence)
+        if decision.hold:  # what a held text shows first: the reason; the tuple only as "nearest", after it
+            say(
+                "holding",
+                f"{decision.message(args.current)} (use --force to drive the tuple)",
+                reason=decision.reason,
+                hold_still=True,
+            )
         if decision.note:
             say("restricted", f"note: {decision.note}", note=decision.note)
-        confidence = float(g.confidence)
         say(
             "tuple",
-            f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  "
-            f"backend {g.backend}  [{1e3 * (time.perf_counter() - t0):.0f} ms]",
+            f"  {decision.nearest}  backend {g.backend}  [{ms:.0f} ms]"
+            if decision.hold
+            else f"grounded: ({intent}, {intensity})  confidence {confidence:.2f}  backend {g.backend}  [{ms:.0f} ms]",
             intent=intent,
             intensity=intensity,
             confidence=confidence,
             backend=g.backend,
             confident=g.confident,
+            nearest=decision.hold,
         )
         if decision.forced:
             say(
@@ -242,7 +254,6 @@ def run(args: argparse.Namespace) -> int:
     hold = decision.hold
     u = np.asarray(outcome.u).reshape((-1,) + np.shape(outcome.u)[-2:])
     if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give
-        say("warning", f"{outcome.message} (use --force to drive the tuple)", reason=decision.reason, hold_still=True)
         say(
             "hold",
             f"hold still: {u.shape[0]} constant command streams of shape {u.shape[1:]}",

@@ -5,9 +5,10 @@ with ``:render``, the simulated motion. ``obs: <scene> | <what the user said>`` 
 response first (Eq. 2, needs JGROUNDING_MLLM_URL), with the short history of past tuples. Commands:
 ``:help``, ``:history``, ``:render``, ``:force`` (drive the last low-confidence grounding anyway), ``:quit``.
 
-A grounding below the calibrated confidence threshold does not drive the trunk: the loop holds still
-(no motion is sampled or sent; :data:`jgrounding.semantics.HOLD_STILL`) and says so, unless started with
-``--force`` or told ``:force``.
+A text the act/hold decision holds (:mod:`jgrounding.semantics.decision`: it calls for no motion, or the
+grounding is below its kind of text's threshold) does not drive the trunk: the loop holds still (no motion is
+sampled or sent; :data:`jgrounding.semantics.HOLD_STILL`) and says "holding still: <reason>" first, the tuple it was
+not acted on only after it as "nearest", unless started with ``--force`` or told ``:force``.
 
 Each turn's trajectory continues from where the last one left the robot (the first from rest): the gate
 blends it in within the slew bound, so the command stream never jumps between responses. The stream
@@ -34,9 +35,9 @@ Commands:
   :help      this text
   :history   the tuples driven so far
   :render    the simulated motion of the last turn (motion GIF)
-  :force     drive the last grounding that was held back for low confidence
+  :force     drive the last grounding that was held back
   :quit      end (so do Ctrl-D and Ctrl-C); the trunk is brought back to rest
-A grounding below the confidence threshold does not move the trunk: it holds still at its current
+A held text ("holding still: <reason>") does not move the trunk: it holds still at its current
 command, unless you type :force (or started with --force).
 Each turn continues from where the last one left the trunk; the stream so far is in stream.npy."""
 
@@ -48,7 +49,7 @@ def main(argv=None, stdin=None, stdout=None) -> int:
     p.add_argument("--backend", choices=("embedded", "cues", "mllm"), default="embedded")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--screen", action="store_true", help="keep only samples feasible on the simulated trunk")
-    p.add_argument("--force", action="store_true", help="drive groundings below the confidence threshold too")
+    p.add_argument("--force", action="store_true", help="drive held texts' groundings too")
     p.add_argument(
         "--checkpoint",
         metavar="DIR",
@@ -174,15 +175,18 @@ def _loop(args, stdin, stdout, state) -> int:
                 print(f"error: {e}", file=stdout)
                 continue
             g = decision.grounding
-            if decision.note:
-                print(f"   note: {decision.note}", file=stdout)
-            flag = f"  (not acting: {decision.reason})" if decision.reason else ""
-            print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
-            if decision.hold:
+            if decision.hold:  # the reason first; the tuple it was not acted on only as "nearest", in small print
                 pending = Decision(decision.intent, decision.intensity, g, decision.note, False, decision.reason)
                 print(f"   {decision.message(state['current'])}. Type :force to drive it anyway.", file=stdout)
+                if decision.note:
+                    print(f"   note: {decision.note}", file=stdout)
+                print(f"      ({decision.nearest})", file=stdout)
                 stdout.flush()
                 continue
+            if decision.note:
+                print(f"   note: {decision.note}", file=stdout)
+            flag = f"  (forced: {decision.reason})" if decision.reason else ""
+            print(f"-> ({g.intent}, {g.intensity})  confidence {g.confidence:.2f}{flag}", file=stdout)
         pending = None
         turn += 1
         history.append((decision.intent, decision.intensity))

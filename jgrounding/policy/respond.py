@@ -8,8 +8,9 @@ CLI, the interactive loop, the server and its 30 Hz stream:
    recorded): another intensity of a learned intent moves to the nearest learned one; an intent the checkpoint
    never learned is named and is not confident;
 3. the decision (:class:`Decision`): a grounding that is not confident holds still, with its reason, unless
-   forced (among them a text the explicit no-motion rule holds, :mod:`jgrounding.semantics.nomotion`:
-   ``grounding.no_motion`` names why); a tuple given directly always moves;
+   forced (the act/hold decision of :mod:`jgrounding.semantics.decision` made it: a text that calls for no motion,
+   ``grounding.no_motion`` naming why, or one below its kind of text's threshold); a tuple given directly always
+   moves. A held text shows :meth:`Decision.message` first and its tuple only after it, as :attr:`Decision.nearest`;
 4. the trajectory: sampled by the public sampler (:func:`jgrounding.policy.sampling.sample`, the safety gate),
    or, when holding still, the current command held through the same gate (:meth:`Responder.hold`).
 
@@ -68,7 +69,11 @@ def snap(g: Grounding, tuples, checkpoint) -> tuple[Grounding, str | None]:
         f"({_names(tuples)}); its nearest is ({INTENTS[m]}, {INTENSITIES[z]}){score}"
     )
     confidence = float(scores[m]) if scores else 0.0
-    reason = g.reason if g.no_motion else f"asked for {asked}, which this checkpoint never learned"
+    reason = (
+        g.reason
+        if g.no_motion
+        else f"asked for {asked}, which this checkpoint never learned; it knows {_names(tuples)}"
+    )
     snapped = dataclasses.replace(
         g, intent=INTENTS[m], intensity=INTENSITIES[z], confidence=confidence, confident=False, reason=reason
     )
@@ -100,8 +105,17 @@ class Decision:
         return bool(self.reason) and not self.hold
 
     def message(self, current=safety.REST) -> str | None:
-        """``"holding still: <reason>; <what the trunk keeps>"`` when holding still at ``current``, else None."""
+        """``"holding still: <reason>; <what the trunk keeps>"`` when holding still at ``current``, else None: what
+        every front end shows first for a held text."""
         return f"holding still: {self.reason}; {held(current)}" if self.hold else None
+
+    @property
+    def nearest(self) -> str | None:
+        """``"nearest: (intent, intensity), p = 0.55"`` for a held text: the tuple it was not acted on, which the
+        front ends show only after :meth:`message`, in small print; None when not holding a text."""
+        if not self.hold or self.grounding is None:
+            return None
+        return f"nearest: ({self.intent}, {self.intensity}), p = {self.grounding.confidence:.2f}"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -4,11 +4,13 @@ Backends behind one :func:`ground`: ``embedded`` (offline, the default: a traine
 encoder, Eq. (3) with a learned mismatch and a confidence calibrated on the dev split), ``cues`` (the first,
 cue-list reducer: Eq. (3) with cosine prototypes; the baseline) and ``mllm`` (an OpenAI-compatible server,
 Eq. (4), falling back to embedded). A configured MLLM also takes over embedded groundings below the
-confidence threshold. Every backend's grounding then passes the explicit no-motion decision
-(:mod:`jgrounding.semantics.nomotion`): a text that rules the motion out, orders the trunk to keep still, is
-addressed to someone else or only describes activity (the rule), or that the learned detector is confident calls
-for no motion, comes back held (``confident=False``, ``no_motion`` its kind, ``reason`` why), whatever motion words
-it contains. Apps do not drive the trunk on a non-confident grounding unless forced: they fall back to
+confidence threshold. Every backend's grounding then passes the act/hold decision
+(:mod:`jgrounding.semantics.decision`): the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: a
+text that rules the motion out, orders the trunk to keep still, is addressed to someone else or only describes
+activity, or that the learned detector is confident calls for no motion, comes back held, ``no_motion`` its kind,
+``reason`` why, whatever motion words it contains), then the confidence threshold of the text's kind (a text that
+names its motion, one that chooses it in other words, a situation to interpret), which guards against a wrong
+intent. Apps do not drive the trunk on a non-confident grounding unless forced: they fall back to
 :data:`HOLD_STILL`.
 ``python -m jgrounding.semantics --write-assets`` regenerates ``jgrounding/assets/intent_embeddings.npz`` and
 ``jgrounding/assets/cue_prototypes.npz`` (the cue-list prototypes, so a fresh process does not embed them).
@@ -33,13 +35,13 @@ from jgrounding.semantics.cue_reducer import (  # noqa: F401  (re-exported)
     ground_cues,
     intent_scores,
 )
+from jgrounding.semantics.decision import decide as _decide
 from jgrounding.semantics.embedded import (  # noqa: F401
     MAX_CHARS,
     ground_embedded,
     ground_embedded_many,
     ground_embedded_vectors,
 )
-from jgrounding.semantics.nomotion import apply as _no_motion
 from jgrounding.semantics.nomotion import sentence_vectors as _sentence_vectors
 from jgrounding.semantics.types import Grounding
 from jgrounding.vocabulary import INTENTS
@@ -61,35 +63,36 @@ def ground(text: str, *, backend: str = "embedded", escalate: bool = True, **mll
 
     ``backend``: ``"embedded"`` (offline: trained head over MiniLM, default), ``"cues"`` (the first
     cue-list reducer, a baseline) or ``"mllm"`` (OpenAI-compatible server; falls back to embedded with a
-    logged reason). With ``escalate`` and an MLLM endpoint configured (``url=`` or ``JGROUNDING_MLLM_URL``),
-    an embedded grounding below the calibrated confidence threshold is asked of the MLLM instead. A text the
-    no-motion decision holds (:mod:`jgrounding.semantics.nomotion`: the rule or the learned detector, which reads
-    the embedded pass's sentence vector; the other backends pay one encoder pass for it) comes back
-    ``confident=False`` with ``no_motion`` set and its reason, from every backend, and is not escalated.
+    logged reason). Every grounding passes the act/hold decision (:func:`jgrounding.semantics.decision.decide`):
+    a text the no-motion decision holds (the rule or the learned detector, which reads the embedded pass's sentence
+    vector; the other backends pay one encoder pass for it) comes back ``confident=False`` with ``no_motion`` set
+    and its reason, from every backend, and is not escalated; an embedded grounding below its kind of text's
+    threshold comes back ``confident=False`` with the reason, and with ``escalate`` and an MLLM endpoint configured
+    (``url=`` or ``JGROUNDING_MLLM_URL``) is asked of the MLLM instead.
     Empty or non-string input raises; nonsense returns ``confident=False`` with a reason.
     """
     text = _checked(text)
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
     if backend == "cues":
-        return _no_motion(text, ground_cues(text))
+        return _decide(text, ground_cues(text), per_kind=False)
     from jgrounding.semantics import mllm
 
     if backend == "mllm":
-        return _no_motion(text, mllm.ground_mllm(text, **mllm_options))
-    (g,), vectors = ground_embedded_vectors([text])
+        return _decide(text, mllm.ground_mllm(text, **mllm_options), per_kind=False)
+    (g,), vectors = ground_embedded_vectors([text], threshold=0.0)
     vector = None if vectors is None else vectors[0]
-    g = _no_motion(text, g, vector=vector)
+    g = _decide(text, g, vector=vector)
     if g.confident or g.no_motion or not escalate or not mllm_configured(**mllm_options):
         return g
-    return _no_motion(text, mllm.ground_mllm(text, fallback=g, **mllm_options), vector=vector)
+    return _decide(text, mllm.ground_mllm(text, fallback=g, **mllm_options), vector=vector, per_kind=False)
 
 
 def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
     """:func:`ground` of many texts at once, offline (no escalation): one batched encoder pass for the
     ``embedded`` backend (the evaluation scripts use this), one text at a time for ``cues``.
 
-    Each text is checked as :func:`ground` checks it and passes the same no-motion decision; the results are in
+    Each text is checked as :func:`ground` checks it and passes the same act/hold decision; the results are in
     the order given.
     """
     if isinstance(texts, str):
@@ -97,13 +100,14 @@ def ground_many(texts, *, backend: str = "embedded") -> list[Grounding]:
     if backend not in ("embedded", "cues"):
         raise ValueError(f"unknown backend {backend!r} for ground_many; valid backends: embedded, cues")
     texts = [_checked(t) for t in texts]
+    per_kind = backend == "embedded"
     if backend == "cues":
         groundings, vectors = [ground_cues(t) for t in texts], _sentence_vectors(texts) if texts else None
     else:
-        groundings, vectors = ground_embedded_vectors(texts)
+        groundings, vectors = ground_embedded_vectors(texts, threshold=0.0)
     if vectors is None:
-        return [_no_motion(t, g) for t, g in zip(texts, groundings)]
-    return [_no_motion(t, g, vector=v) for t, g, v in zip(texts, groundings, vectors)]
+        return [_decide(t, g, per_kind=per_kind) for t, g in zip(texts, groundings)]
+    return [_decide(t, g, vector=v, per_kind=per_kind) for t, g, v in zip(texts, groundings, vectors)]
 
 
 def warmup(max_tokens: int = 128) -> None:

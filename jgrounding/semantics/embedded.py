@@ -59,7 +59,7 @@ def warmup_tuned(head, max_tokens: int = 128) -> None:
             a.block_until_ready()
 
 
-def _caveats(text: str) -> list[str]:
+def caveats(text: str) -> list[str]:
     """Reasons, independent of the model, why a text cannot be grounded with confidence."""
     reasons = []
     if english_fraction(text) < 0.5:
@@ -84,16 +84,22 @@ def ground_embedded_many(texts, head=None) -> list[Grounding]:
     return ground_embedded_vectors(texts, head)[0]
 
 
-def ground_embedded_vectors(texts, head=None) -> tuple[list[Grounding], np.ndarray | None]:
+def ground_embedded_vectors(
+    texts, head=None, threshold: float | None = None
+) -> tuple[list[Grounding], np.ndarray | None]:
     """:func:`ground_embedded_many` and the texts' sentence vectors ``(N, 384)`` from the same pass, which the
     learned no-motion detector reads (:func:`jgrounding.semantics.nomotion.apply`); None for a head that does not
-    run as one program (no tuned encoder: its vectors are not the detector's)."""
+    run as one program (no tuned encoder: its vectors are not the detector's). ``threshold``: the confidence below
+    which a grounding is not acted on (None: the head's calibrated one; 0: none, only the caveats and the
+    no-behaviour class hold, as :mod:`jgrounding.semantics.decision` wants it before its own threshold per kind of
+    text)."""
     from jgrounding.semantics import head as semantic_head
 
     texts = list(texts)
     if not texts:
         return [], None
     head = head or semantic_head.load()
+    threshold = head.threshold if threshold is None else float(threshold)
     vectors = None
     if head.config.features.one_program:
         p_intent, p_intensity, p_why, vectors = predict_tuned_many(head, texts)
@@ -107,7 +113,7 @@ def ground_embedded_vectors(texts, head=None) -> tuple[list[Grounding], np.ndarr
     out = []
     for i, text in enumerate(texts):
         m, z, conf = int(ms[i]), int(zs[i]), float(confs[i])
-        reasons = _caveats(text)
+        reasons = caveats(text)
         p_none = float(p_intent[i, semantic_head.NONE])
         if p_none > conf:
             why = "none"
@@ -115,10 +121,10 @@ def ground_embedded_vectors(texts, head=None) -> tuple[list[Grounding], np.ndarr
                 why = head.meta["reasons"][int(np.argmax(p_why[i]))]
             text_why = head.meta.get("reason_text", {}).get(why, "no behaviour requested")
             reasons.append(f"{text_why} (reads as no behaviour, p = {p_none:.2f})")
-        if conf < head.threshold and not reasons:
+        if conf < threshold and not reasons:
             reasons.append(
                 f"low confidence: {INTENTS[m].replace('_', ' ')} at p = {conf:.2f}, below the calibrated "
-                f"threshold {head.threshold:.2f}"
+                f"threshold {threshold:.2f}"
             )
         out.append(
             Grounding(

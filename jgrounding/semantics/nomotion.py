@@ -29,9 +29,10 @@ blind-written no-motion sets and the head's motion texts (``python -m tools.trai
 (its vectors are that head's) is ignored, with a warning, until the tool is run again. Backends that do not run
 the head (``cues``, ``mllm``) pay one encoder pass for the vector, only for texts the rule lets through.
 
-:func:`check` is the decision (rule, then detector), :func:`apply` turns a grounding into a held one;
-:func:`jgrounding.semantics.ground` applies it for every backend, so the Responder, the CLI, the server and its
-stream all get the same decision.
+:func:`check` is the decision (rule, then detector), :func:`apply` turns a grounding into a held one; the act/hold
+decision (:func:`jgrounding.semantics.decision.decide`, which :func:`jgrounding.semantics.ground` calls for every
+backend) applies it first, with the detector at the operating point's threshold, so the Responder, the CLI, the
+server and its stream all get the same decision.
 """
 
 from __future__ import annotations

@@ -15,12 +15,10 @@ class Grounding:
 
     intent: str  # one of the 16 intents (the most likely, even when not acted on)
     intensity: str  # one of the 4 intensities
-    confidence: (
-        float  # the probability of the intent given the text, calibrated on dev; mass on "no behaviour" lowers it
-    )
+    confidence: float  # the probability of the intent given the text, calibrated on dev; mass on "no behaviour" lowers it (a text that names its motion: the probability among the gestures it names)
     backend: str  # embedded, cues, mllm, or "mllm (escalated)"
-    confident: bool  # act on it: confidence reaches the calibrated threshold and the text calls for a motion
-    reason: str = ""  # when not confident, why, for a person: e.g. "words addressed to someone else (reads as no behaviour, p = 0.97)", "low confidence: nodding at p = 0.41, below the calibrated threshold 0.72"
+    confident: bool  # act on it: the text calls for a motion and confidence reaches its kind of text's threshold
+    reason: str = ""  # when not confident, why, for a person: e.g. "words addressed to someone else (reads as no behaviour, p = 0.97)", "unsure which motion: nodding at p = 0.41, below 0.78 for a situation to interpret"
     scores: tuple = ()  # per-intent probabilities (embedded) or similarities (cues)
     no_motion: str = ""  # the no-motion decision that held it (jgrounding.semantics.nomotion.REASONS), or ""
 

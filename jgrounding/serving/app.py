@@ -150,10 +150,10 @@ class Server:
 
     async def ground(self, msg: dict) -> dict:
         decision = await self._call(self.policy.decide, parse_text(msg, self.limits))
-        return {
-            "grounding": decision_dict(decision),
+        return {  # a held text's message ("holding still: <reason>; ...") first, the grounding after it
             "hold_still": decision.hold,
             "message": decision.message(),
+            "grounding": decision_dict(decision),
         }
 
     async def sample(self, msg: dict) -> dict:
@@ -177,10 +177,10 @@ class Server:
         except ValueError as e:  # e.g. an unknown sampler, a tuple the checkpoint lacks
             raise RequestError(str(e)) from None
         reply = {
-            "u": np.asarray(u, np.float32),
-            "grounding": grounding,
             "hold_still": hold,
             "message": decision.message(req.current) if hold else None,
+            "u": np.asarray(u, np.float32),
+            "grounding": grounding,
             "seed": req.seed,
             "steps": req.steps,
             "start_conditioned": req.start_conditioned,

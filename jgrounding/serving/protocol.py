@@ -255,8 +255,9 @@ def grounding_dict(g) -> dict:
 
 def decision_dict(decision) -> dict:
     """The grounding of a :class:`jgrounding.policy.respond.Decision` with its ``note`` (what the snap onto the
-    checkpoint's tuples changed)."""
-    return {**grounding_dict(decision.grounding), "note": decision.note}
+    checkpoint's tuples changed) and, for a held text, ``nearest`` (:attr:`Decision.nearest`: the tuple it was not
+    acted on, for small print after the reply's ``message``)."""
+    return {**grounding_dict(decision.grounding), "note": decision.note, "nearest": decision.nearest}
 
 
 async def resolve(req: SampleRequest | RespondRequest, policy, call) -> tuple[Any, dict | None, Any, Any]:

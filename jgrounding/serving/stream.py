@@ -220,9 +220,10 @@ class Stream:
                 self.replace_plan(s, plan, state)
                 self.responses += 1
                 return {
+                    "hold_still": state == "hold",
+                    "message": decision.message(start) if state == "hold" else None,
                     "seq": seq,
                     "grounding": grounding,
-                    "hold_still": state == "hold",
                     "starts_at_tick": s,
                     "start": start,
                     "seed": req.seed,

@@ -10,7 +10,7 @@ def test_the_title_names_the_text_and_the_tuple():
     assert picture_title(None, "nodding", "subtle") == "(nodding, subtle)"
     long = picture_title("x" * 100, "nodding", "subtle", width=20)
     assert long.startswith('"' + "x" * 19 + '…"') and long.endswith("(nodding, subtle)")
-    assert "not confident" in picture_title("hm", "nodding", "subtle", hold=True)
+    assert "not acted on" in picture_title("hm", "nodding", "subtle", hold=True)
 
 
 def test_help_says_where_the_files_go():

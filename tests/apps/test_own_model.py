@@ -102,7 +102,8 @@ def test_hold_still_plot_is_not_titled_like_a_motion(tmp_path, monkeypatch, caps
     monkeypatch.setattr(plotting, "tendon_figure", lambda u, p, **kw: titles.append(kw["title"]) or real(u, p, **kw))
     assert cli.main(["zzqx blorf", "--samples", "1", "--no-render", "--out", str(tmp_path)]) == 0
     assert "hold" in capsys.readouterr().out
-    assert titles[0].startswith("holding still at the current command (grounded ")
+    # a held text shows the tuple only as the nearest one, after the hold (the title named it "grounded" before)
+    assert titles[0].startswith("holding still at the current command (nearest ")
 
 
 class _Interrupted(io.StringIO):

@@ -34,6 +34,7 @@ def test_an_unlearned_intent_is_named_and_not_confident():
     g, note = respond.snap(_g(intent="refusing"), LAB, "lab")
     assert (g.intent_index, g.intensity_index) in LAB and not g.confident
     assert "refusing" in note and "never learned" in g.reason
+    assert g.reason.endswith("it knows greeting/subtle, greeting/moderate, nodding/pronounced")  # what it can do
 
 
 def test_decision_holds_an_unconfident_grounding_with_its_reason_unless_forced():

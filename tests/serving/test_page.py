@@ -1,7 +1,8 @@
 """The page in a real browser: Debian's headless Chromium driven by Selenium (nothing is downloaded).
 
-Types a response, checks that the grounding, the tendon curves and the trunk's motion appear, turns the
-live stream on, and saves a screenshot to docs/serving/page.png. Chromium and its driver are installed by
+Types a response, checks that the grounding, the tendon curves and the trunk's motion appear, that a held text
+shows "holding still: <reason>" with no tuple in large type (only the nearest one, in small print), turns the live
+stream on, and saves a screenshot to docs/serving/page.png. Chromium and its driver are installed by
 scripts/install_system.sh (run by ``make install``); in CI (``CI=true``) their absence fails the test.
 """
 
@@ -37,7 +38,7 @@ def test_page_grounds_a_response_and_moves_the_trunk(browser, running):
     assert intent.replace(" ", "_") in vocabulary.INTENTS
     assert browser.find_element(By.ID, "intensity").text in vocabulary.INTENSITIES
     assert browser.find_element(By.ID, "confidence").text.endswith("%")
-    assert browser.find_element(By.ID, "status").text.startswith(("Confident", "Not confident"))
+    assert browser.find_element(By.ID, "status").text.startswith(("Acting", "holding still: "))
     curves = browser.execute_script(  # the SVG is redrawn every frame: read it in one go
         "return [...document.querySelectorAll('#tendons polyline.tendon')].map(p => p.dataset.points)"
     )
@@ -61,6 +62,21 @@ def test_page_grounds_a_response_and_moves_the_trunk(browser, running):
     tmp = SCREENSHOT.with_suffix(".tmp.png")
     browser.save_screenshot(str(tmp))
     os.replace(tmp, SCREENSHOT)
+
+    box.clear()  # a held text: the reason first, no tuple in large type, the nearest one in small print
+    box.send_keys("please stay still, the nurse is checking you", Keys.ENTER)
+    status = wait_for(
+        browser, "const t = document.getElementById('status').textContent; return t.startsWith('holding') && t"
+    )
+    assert status.startswith("holding still: the text orders the trunk to keep still")
+    assert browser.find_element(By.ID, "intent").text == "-" and browser.find_element(By.ID, "intensity").text == "-"
+    assert browser.find_element(By.ID, "nearest").text.startswith("nearest: (")
+    held = SCREENSHOT.with_name("page_hold.png")  # the held state, for docs/acting.md
+    browser.save_screenshot(str(held.with_suffix(".tmp.png")))
+    os.replace(held.with_suffix(".tmp.png"), held)
+    box.clear()
+    box.send_keys("Wave hello to our new visitor!", Keys.ENTER)
+    wait_for(browser, "return document.getElementById('status').textContent.startsWith('Acting')")
 
     browser.find_element(By.ID, "stream").click()  # the live stream
     wait_for(browser, "return /tick [4-9][0-9]/.test(document.getElementById('streaminfo').textContent)")
