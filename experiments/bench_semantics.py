@@ -1,18 +1,10 @@
 """Selective semantic grounding on the frozen evaluation sets: `python -m experiments.bench semantics`.
 
-Reads the TEST splits only here (never tuned on): ``assets/semantics_eval_v2/test.jsonl`` (five styles of motion
-texts and eight kinds of texts that call for no motion), the plainly worded ``assets/semantics_eval/test.jsonl`` and
-the frozen blind benches of #34, ``assets/semantics_eval_v3/bench.jsonl`` (two writers) and
-``assets/semantics_eval_w3/bench.jsonl`` (a third writer, 2026-12-04): nine kinds of texts that call for no motion
-and contrast texts that reject one motion and choose another, ``assets/semantics_eval_s3/bench.jsonl`` (a fourth
-writer): situation-only and mixed texts, ``assets/semantics_eval_s4/bench.jsonl`` (a fifth writer, all of it
-frozen): situation-only texts, and sets written after the others had been read many times,
-``assets/semantics_eval_w4/bench.jsonl`` and ``assets/semantics_eval_w5/bench.jsonl`` (no motion and contrast; w5
-all frozen), ``assets/semantics_eval_s10/bench.jsonl`` and ``assets/semantics_eval_s11/bench.jsonl`` (situations,
-all frozen), and two sets parked unread until the seventh session's change, ``assets/semantics_eval_s14/bench.jsonl``
-(situations) and ``assets/semantics_eval_w6/bench.jsonl`` (no motion and contrast), both all frozen, and the same
-two kinds parked until the eighth session's change (``semantics_eval_s22``, ``semantics_eval_w9``) and the ninth's
-(``semantics_eval_s23``, ``semantics_eval_w10``); this script is the only reader of those files. Each
+Reads the sets of role ``bench`` of ``assets/semantics/sets.toml`` only here (never tuned on): the test splits
+(:data:`SPLITS`: v2's five styles of motion texts and eight kinds of texts that call for no motion, and the plainly
+worded one) and the frozen blind benches (:data:`BENCH_V3`: no-motion and contrast texts, v3, w3, w4, w5, w6, w9 and
+w10, and situation-only texts, s3 with mixed texts, s4, s10, s11, s14, s22 and s23, each written by writers who saw no
+code, corpus or evaluation set); this script is the only reader of those files. Each
 blind bench is grounded once per reducer, outside the timing, with one more row: ``new, no rule``, the shipped head without
 the explicit no-motion decision (:mod:`jgrounding.semantics.nomotion`: the rule and the learned detector), so the
 decision's effect is read off one run; the ``new`` rows count the texts the rule held and those the detector held.
@@ -20,7 +12,7 @@ Three reducers run in the same process, each text grounded alone, warm (``semant
 bucket compiled before timing):
 
 - ``new``: the shipped trained head (``jg.ground(text)``, its defaults; no MLLM endpoint may be configured);
-- ``old``: the first trained head (``assets/semantic_head_v1.npz``, the embedding + Eq. (3) head of #15);
+- ``old``: the first trained head (``assets/semantics/bench/head_v1/semantic_head_v1.npz``, the embedding + Eq. (3) head of #15);
 - ``cues``: the cue-list reducer (``backend="cues"``), the baseline.
 
 Per style and overall: intent accuracy on motion texts, the share of motion texts acted on (confident), the
@@ -69,33 +61,19 @@ from jgrounding.semantics import calibration, embedded, encoder, features
 from jgrounding.semantics import head as semantic_head
 from jgrounding.semantics.nomotion import LEARNED
 from jgrounding.vocabulary import INTENSITIES, INTENTS
+from tools import semantic_sets
 
 ROOT = Path(__file__).resolve().parent.parent
-SPLITS = {
-    "v2 test": ROOT / "assets" / "semantics_eval_v2" / "test.jsonl",
-    "plain test": ROOT / "assets" / "semantics_eval" / "test.jsonl",
-}
-# The frozen blind benches of #34 (accuracy only, not timed): two writers' (v3) and a third writer's (w3) no-motion
-# and contrast texts, a fourth writer's (s3) situation-only and mixed texts, a fifth writer's (s4) situations, and
-# writers' sets added once the others had been read many times: w4 (no motion and contrast) and s10 (situations), then
-# w5 (no motion and contrast) and s11 (situations), both all frozen, in the sixth session.
+# The sets are named in assets/semantics/sets.toml (tools.semantic_sets): the test splits, then the frozen blind
+# benches in the manifest's order (two writers' (v3) and a third writer's (w3) no-motion and contrast texts, a fourth
+# writer's (s3) situation-only and mixed texts, and the writers' sets added once the others had been read many times).
+SPLITS = {"v2 test": semantic_sets.path("bench/v2"), "plain test": semantic_sets.path("bench/plain")}
 BENCH_V3 = {
-    "v3 bench": ROOT / "assets" / "semantics_eval_v3" / "bench.jsonl",
-    "w3 bench": ROOT / "assets" / "semantics_eval_w3" / "bench.jsonl",
-    "s3 bench": ROOT / "assets" / "semantics_eval_s3" / "bench.jsonl",
-    "s4 bench": ROOT / "assets" / "semantics_eval_s4" / "bench.jsonl",
-    "w4 bench": ROOT / "assets" / "semantics_eval_w4" / "bench.jsonl",
-    "s10 bench": ROOT / "assets" / "semantics_eval_s10" / "bench.jsonl",
-    "w5 bench": ROOT / "assets" / "semantics_eval_w5" / "bench.jsonl",
-    "s11 bench": ROOT / "assets" / "semantics_eval_s11" / "bench.jsonl",
-    "s14 bench": ROOT / "assets" / "semantics_eval_s14" / "bench.jsonl",
-    "w6 bench": ROOT / "assets" / "semantics_eval_w6" / "bench.jsonl",
-    "s22 bench": ROOT / "assets" / "semantics_eval_s22" / "bench.jsonl",
-    "w9 bench": ROOT / "assets" / "semantics_eval_w9" / "bench.jsonl",
-    "s23 bench": ROOT / "assets" / "semantics_eval_s23" / "bench.jsonl",
-    "w10 bench": ROOT / "assets" / "semantics_eval_w10" / "bench.jsonl",
+    f"{s.name.split('/')[1]} bench": s.file("bench.jsonl")
+    for s in semantic_sets.select(role="bench", reader="bench")
+    if "bench.jsonl" in s.file_names
 }
-OLD_HEAD = ROOT / "assets" / "semantic_head_v1.npz"
+OLD_HEAD = semantic_sets.path("bench/head_v1")
 REDUCERS = {
     "new": "trained head, structure-aware (jg.ground)",
     "old": "first trained head (#15)",
@@ -1129,9 +1107,9 @@ def main(argv=None) -> int:
     test = splits["v2 test"]
     n_motion = sum(it["intent"] != "none" for it in test)
     lines = [
-        f"Selective grounding on the frozen test splits: assets/semantics_eval_v2/test.jsonl ({len(test)} texts: "
+        f"Selective grounding on the frozen test splits: {SPLITS['v2 test'].relative_to(ROOT)} ({len(test)} texts: "
         f"{n_motion} call for a motion in five styles, {len(test) - n_motion} for none) and the plainly worded "
-        f"assets/semantics_eval/test.jsonl ({len(splits['plain test'])}). Never tuned on; dev splits chose and "
+        f"{SPLITS['plain test'].relative_to(ROOT)} ({len(splits['plain test'])}). Never tuned on; dev splits chose and "
         "calibrated the head. Each text grounded alone, warm, in one run for every reducer.",
         "",
         "Columns: intent = intent accuracy on motion texts; acted = share of motion texts acted on (confident); "

@@ -162,14 +162,17 @@ def test_every_second_reading_covers_its_bench_exactly():
 
 
 def test_only_the_bench_reads_the_frozen_blind_benches():
-    """#34: each blind set's bench.jsonl is frozen; only experiments/bench_semantics.py names it (each set's
-    split.py writes it). Every set under assets/ with a bench.jsonl is one of the bench's BENCH_V3."""
+    """Each blind set's bench.jsonl is frozen; only experiments/bench_semantics.py names it (each set's split.py
+    writes it). Every bench.jsonl under assets/ is one of the bench's BENCH_V3, each a set of role bench."""
     import re
     from pathlib import Path
 
+    from tools import semantic_sets
+
     root = Path(bench.ROOT)
-    frozen = sorted(p.parent.name for p in (root / "assets").glob("*/bench.jsonl"))
-    assert frozen == sorted(p.parent.name for p in bench.BENCH_V3.values())
+    frozen = sorted((root / "assets").rglob("bench.jsonl"))
+    assert frozen == sorted(bench.BENCH_V3.values())
+    assert all(p.parent.parent == semantic_sets.FOLDER / "bench" for p in frozen)
     readers = []
     for path in [*root.glob("jgrounding/**/*.py"), *root.glob("tools/*.py"), *root.glob("experiments/*.py")]:
         if re.search(r"[\"']bench\.jsonl[\"']", path.read_text()):  # the file name as a string literal in code

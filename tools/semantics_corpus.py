@@ -1,6 +1,6 @@
 """Generated training corpus for the semantic head: templates written from the vocabulary, never from eval text.
 
-``python -m tools.semantics_corpus`` writes ``assets/semantics_train/generated.jsonl`` (deterministic:
+``python -m tools.semantics_corpus`` writes ``assets/semantics/train/corpora/generated.jsonl`` (deterministic:
 one seeded numpy generator). Each line is ``{"text", "intent", "intensity"}``; ``intent`` may be ``"none"``
 for text that asks for no trunk behaviour at all (interface commands, keyboard noise, unrelated facts), which
 teaches the head to say it is unsure instead of guessing a motion.
@@ -21,15 +21,14 @@ import numpy as np
 
 from jgrounding import vocabulary as voc
 from jgrounding.vocabulary import INTENSITIES, INTENTS
+from tools import semantic_sets
 
 ROOT = Path(__file__).resolve().parent.parent
-OUT = ROOT / "assets" / "semantics_train" / "generated.jsonl"
+OUT = semantic_sets.path("train/corpora", "generated.jsonl")
 # The dev and test splits: a generated line that happens to be one of their texts (short commands such as "Come
 # here.") is dropped, so that no training text is one the project evaluates on
 # (tests/semantics/test_training_data.py). Only their texts are compared; nothing else is read from them.
-EVAL_SPLITS = tuple(
-    ROOT / "assets" / d / f"{s}.jsonl" for d in ("semantics_eval", "semantics_eval_v2") for s in ("dev", "test")
-)
+EVAL_SPLITS = tuple(path for s in semantic_sets.select(reader="corpus") for path in s.files)
 SEED = 0
 PER_INTENT = 200  # generated examples per intent
 NUM_NONE = 240

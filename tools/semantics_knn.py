@@ -4,7 +4,7 @@
     python -m tools.semantics_knn --write  # the best variant of CHOICES: jgrounding/assets/semantic_knn.npz
 
 For every text the shipped head (``jgrounding/assets/semantic_head.npz``) already computes its tuned encoder's four pooled
-vectors and its hidden layer. Here the training texts (``assets/semantics_train/*.jsonl``) are put through the
+vectors and its hidden layer. Here the training texts (``assets/semantics/train/corpora/*.jsonl``) are put through the
 same path once, and a dev text's intent distribution becomes
 
     p = (1 - a) p_head + a p_knn,    p_knn = the (similarity-weighted) intent vote of its k nearest training texts
@@ -32,6 +32,7 @@ import numpy as np
 
 from jgrounding.semantics import calibration, features
 from jgrounding.semantics import head as sh
+from tools import semantic_sets
 from tools import train_semantics as ts
 
 ROOT = ts.ROOT
@@ -44,12 +45,12 @@ REPORT = ROOT / "results" / "semantics_dev_knn.json"
 # docs/semantics_blind_brief.md (the intents' descriptions and the style, as the v2 evaluation set's writer had them)
 # and, since the eighth session, a second writer's 320 from the same brief.
 HOLDOUTS = {
-    "hold-out": (ROOT / "assets" / "semantics_dev_situations.jsonl",),
+    "hold-out": semantic_sets.files("dev/situations_holdout"),
     "blind": ts.SITUATION_DEVS,
 }
 # Rows the vote's table holds beyond the training corpora (the head is not trained on them, so
 # tools.train_semantics still rebuilds the shipped head): 1,024 situations written from the blind brief.
-VOTE_ROWS = ROOT / "assets" / "semantics_vote"
+VOTE_ROWS = semantic_sets.files("train/vote")
 POOL = features.EMBED_DIM  # one pooled vector
 POOLED = features.POOLED_FEATURES  # the extras follow the tuned encoder's poolings in the head's inputs
 # The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
@@ -398,11 +399,11 @@ def _holdout_line(v: dict) -> str:
 
 
 def table_rows() -> tuple[list[dict], np.ndarray]:
-    """The rows the vote's table may hold: the training corpora (``assets/semantics_train/``), the vote-only rows
+    """The rows the vote's table may hold: the training corpora (``assets/semantics/train/corpora/``), the vote-only rows
     (:data:`VOTE_ROWS`) and then the blind writers' training splits (:data:`tools.train_semantics.BLIND_TRAIN`),
     with each row's file name ``(N,)`` (a blind split's as ``blind/<folder>/<name>``)."""
     rows, files = [], []
-    named = [(path, path.name) for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *sorted(VOTE_ROWS.glob("*.jsonl"))]]
+    named = [(path, path.name) for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *VOTE_ROWS]]
     named += [(Path(path), f"blind/{Path(path).parent.name}/{Path(path).name}") for path in ts.BLIND_TRAIN]
     for path, name in named:
         part = ts.read_jsonl(path)

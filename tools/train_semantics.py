@@ -1,9 +1,9 @@
 """Train, compare, select and calibrate the semantic head; write ``jgrounding/assets/semantic_head.npz``.
 
-    python -m tools.semantics_corpus      # regenerate assets/semantics_train/generated.jsonl
-    python -m tools.train_semantics       # train on assets/semantics_train/*.jsonl, select/calibrate on dev
+    python -m tools.semantics_corpus      # regenerate assets/semantics/train/corpora/generated.jsonl
+    python -m tools.train_semantics       # train on assets/semantics/train/corpora/*.jsonl, select/calibrate on dev
 
-Training data: every ``assets/semantics_train/*.jsonl`` (the independently written corpora and our generated
+Training data: every ``assets/semantics/train/corpora/*.jsonl`` (the independently written corpora and our generated
 one; all disjoint from the evaluation sets, tests/semantics/test_training_data.py) and the blind writers'
 training texts of #34 (:data:`BLIND_TRAIN`: contrast texts and texts that call for no motion, in nine kinds,
 situation-only and mixed texts; their frozen ``bench.jsonl`` is read only by ``python -m experiments.bench
@@ -11,8 +11,8 @@ semantics``; ``--no-blind`` leaves them out). Rows with intent ``"none"`` teach 
 no-behaviour class; their
 ``style`` (addressee, quoted, system, ...) teaches the reason head that says why a text calls for no motion.
 
-Options (:data:`OPTIONS`) are compared on the dev splits: ``assets/semantics_eval_v2/dev.jsonl`` (the styles
-real reasoners write, with no-behaviour texts), ``assets/semantics_eval/dev.jsonl`` (plainly worded) and the blind
+Options (:data:`OPTIONS`) are compared on the dev splits: ``assets/semantics/dev/v2/dev.jsonl`` (the styles
+real reasoners write, with no-behaviour texts), ``assets/semantics/dev/plain/dev.jsonl`` (plainly worded) and the blind
 situation hold-outs (:data:`SITUATION_DEVS`: two writers; v2 dev holds 29 situations). Each
 option's softmax temperature is fitted on v2 dev and the situation hold-outs together (NLL over the 17 classes), so
 are its intensity cut points (NLL of the motion texts' intensities, :func:`fit_cut_points`), then its confidence
@@ -48,28 +48,28 @@ import numpy as np
 from jgrounding.semantics import calibration, cue_reducer, encoder, features
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENSITIES, INTENTS
+from tools import semantic_sets
 
 ROOT = Path(__file__).resolve().parent.parent
-TRAIN_DIR = ROOT / "assets" / "semantics_train"
-DEV = ROOT / "assets" / "semantics_eval_v2" / "dev.jsonl"
-DEV_PLAIN = ROOT / "assets" / "semantics_eval" / "dev.jsonl"
+# The sets are named in assets/semantics/sets.toml (tools.semantic_sets): the training corpora's folder, the dev splits.
+CORPORA = "train/corpora"
+TRAIN_DIR = semantic_sets.get(CORPORA).folder
+DEV = semantic_sets.path("dev/v2")
+DEV_PLAIN = semantic_sets.path("dev/plain")
 # Situation-only texts for selection (#34: situation-only intent is a goal, and v2 dev holds 29 situations): the
 # "blind" hold-out, 256 texts written from docs/semantics_blind_brief.md by a writer who saw no code, corpus or
 # evaluation set; never trained on. Its intent accuracy at each option's dev threshold is one term of the ship score
 # (dev_score). tools.semantics_knn reports it as its "blind" hold-out.
-SITUATION_DEV = ROOT / "assets" / "semantics_dev_situations_blind.jsonl"
+SITUATION_DEV = semantic_sets.path("dev/situations_blind")
 # A second writer's hold-out (eighth session), never trained on either: the calibration (temperature, cut points,
 # threshold) of a head read on one writer's situations, selected on many times, was optimistic on the blind benches
 # (ECE up to 0.079 and confident wrongs up to 2 % against the hold-out's 1 %). Both together are SITUATION_DEVS.
-SITUATION_DEV2 = ROOT / "assets" / "semantics_dev_situations_blind2.jsonl"
+SITUATION_DEV2 = semantic_sets.path("dev/situations_blind2")
 SITUATION_DEVS = (SITUATION_DEV, SITUATION_DEV2)
 # Texts a student's distillation reads beside the training texts (labels unused: distillation matches the teacher's
 # token states): the vote's 1,024 situations and the 1,024 of the unshipped second situations corpus, so that the
 # student learns the teacher's reading of situations on more of them than the training corpora hold.
-DISTILL_EXTRA = (
-    ROOT / "assets" / "semantics_vote" / "situations_blind.jsonl",
-    ROOT / "assets" / "semantics_unshipped" / "situations2.jsonl",
-)
+DISTILL_EXTRA = tuple(path for s in semantic_sets.select(reader="distillation") for path in s.files)
 CACHE = ROOT / ".cache" / "semantics"
 TARGET_WRONG = 0.02  # confident wrong motions allowed on dev (the goal on test is 3%; a margin for the shift)
 # ... and on the blind situation hold-outs (SITUATION_DEVS, pooled). #34's goal on the frozen blind benches is 1 %, and the
@@ -81,27 +81,20 @@ SITUATION_TARGET_WRONG = 0.01
 # rejected and quoted parts pooled apart from one encoder pass, Eq. (3) cues of the chosen part, structure flags).
 # Rows weigh by their file: the generated corpus less (templated), the structure corpus (the styles real
 # reasoners write, and the no-behaviour kinds) more; each intent and "none" then weighs the same in total.
-# (situations_blind.jsonl: the vote-only rows of assets/semantics_vote/, for a head retrained with them through
+# (situations_blind.jsonl: the vote-only rows of assets/semantics/train/vote/, for a head retrained with them through
 # --train-dir, as docs/how_it_works.md reports; the shipped head is not trained on them.)
 FILE_WEIGHTS = {"generated.jsonl": 0.3, "structure.jsonl": 2.0, "situations.jsonl": 2.0, "situations_blind.jsonl": 2.0}
 # The blind writers' training splits (#34): the contrast and no-motion texts of v3 (two writers), w3 and w4, s3's
 # situation-only and mixed texts, and the situation-only texts of eleven more writers (s5-s9, s12, s13, s15-s18,
-# written for training only: assets/semantics_blind_train/), each file weighing as the structure corpus. The
+# written for training only: assets/semantics/train/situations_blind/), each file weighing as the structure corpus. The
 # benches (bench.jsonl) stay frozen. tools.train_nomotion reads the same files.
-BLIND_TRAIN_DIR = ROOT / "assets" / "semantics_blind_train"
-BLIND_TRAIN = tuple(
-    ROOT / "assets" / d / "train.jsonl"
-    for d in ("semantics_eval_v3", "semantics_eval_w3", "semantics_eval_s3", "semantics_eval_w4")
-) + tuple(
-    BLIND_TRAIN_DIR / f"situations_{w}.jsonl"
-    for w in ("s5", "s6", "s7", "s8", "s9", "s12", "s13", "s15", "s16", "s17", "s18")
-)
-# Two more writers' situations (eighth session, 320 each, assets/semantics_blind_train/): the head retrained with them
+BLIND_TRAIN = tuple(path for s in semantic_sets.select(reader="training") if s.name != CORPORA for path in s.files)
+# Two more writers' situations (eighth session, 320 each, assets/semantics/train/situations_detector/): the head retrained with them
 # in BLIND_TRAIN scored 0.923 on dev against the recalibrated head's 0.918, but without a vote (none passed its rule
 # for it) it lost to the recalibrated head with its vote on dev as users call it (docs/how_it_works.md), so the head
 # is not trained on them and this module still rebuilds the shipped head. The no-motion detector, trained beside
 # that retrain, reads them as motion texts (tools.train_nomotion: BLIND_TRAIN + UNSHIPPED_TRAIN).
-UNSHIPPED_TRAIN = tuple(BLIND_TRAIN_DIR / f"situations_{w}.jsonl" for w in ("s19", "s20"))
+UNSHIPPED_TRAIN = semantic_sets.files("train/situations_detector")
 BLIND_WEIGHT = 2.0
 OPTIONS = {
     "eq3": dict(inputs="eq3", hidden=128, steps=400),

@@ -9,9 +9,9 @@ import pytest
 from jgrounding.semantics import embedded, features
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS
-from tools import semantics_knn, train_semantics
+from tools import semantic_sets, semantics_knn, train_semantics
 
-SITUATIONS = "assets/semantics_train/situations.jsonl"  # the rows of conftest's head_with_vote table
+SITUATIONS = semantic_sets.path("train/corpora", "situations.jsonl")  # the rows of conftest's head_with_vote table
 
 NAMES_AN_ACTION = [
     "Nod.",
@@ -38,11 +38,11 @@ def test_a_shipped_table_is_the_shipped_heads_and_passed_its_rule(head):
 
 
 def test_the_table_rows_hold_the_vote_only_rows_that_the_head_never_trained_on():
-    # The table's rows: the training corpora, then the vote-only situations (assets/semantics_vote/), in
+    # The table's rows: the training corpora, then the vote-only situations (assets/semantics/train/vote/), in
     # tools.semantics_knn.table_rows' order. The head's trainer must not read the vote-only rows.
     # The blind writers' training splits follow (the head trains on them; only the "+blind" table holds them).
     rows, files = semantics_knn.table_rows()
-    vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS.glob("*.jsonl")])
+    vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS])
     blind = np.char.startswith(files.astype(str), "blind/")
     assert vote_only.sum() == 1024 and (files != "generated.jsonl")[vote_only].all()
     corpora, _ = train_semantics.load_train(blind=())
