@@ -18,7 +18,7 @@ import argparse
 
 from jgrounding.vocabulary import INTENSITIES
 from tools import semantic_sets
-from tools.train_semantics import SITUATION_DEV, read_jsonl
+from tools.semantics_data import SITUATION_DEV, read_jsonl
 
 WRITER = SITUATION_DEV  # the hold-out as its writer labelled it
 SECOND = semantic_sets.path("dev/situations_blind", "second_reader.jsonl")

@@ -21,7 +21,7 @@ import dataclasses
 import json
 import sys
 
-from experiments import bench_semantics as bs
+from experiments import bench_semantics_scores as bs
 from tools import semantics_system_dev as sd
 
 THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 0.999)
@@ -99,7 +99,7 @@ def table(rows) -> str:
     head = "| detector threshold | " + " | ".join(c[2] for c in COLUMNS) + " | all three goals |"
     lines = [head, "|" + "---|" * (len(COLUMNS) + 2)]
     for label, r in rows:
-        cells = " | ".join(bs._fmt(r[s][k]) for s, k, _ in COLUMNS)
+        cells = " | ".join(bs.fmt(r[s][k]) for s, k, _ in COLUMNS)
         lines.append(f"| {label} | {cells} | {'yes' if meets(r) else 'no'} |")
     return "\n".join(lines)
 

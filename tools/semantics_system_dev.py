@@ -33,7 +33,7 @@ import json
 import sys
 from pathlib import Path
 
-from experiments import bench_semantics as bs
+from experiments import bench_semantics_scores as bs
 from tools import semantic_sets
 from tools import train_semantics as ts
 

@@ -45,7 +45,7 @@ import numpy as np
 from jgrounding.semantics import nomotion, structure
 from tools import semantic_sets
 from tools.semantics_corpus import normalized
-from tools.train_semantics import BLIND_TRAIN, TRAIN_DIR, UNSHIPPED_TRAIN  # the corpora, the blind writers' splits
+from tools.semantics_data import BLIND_TRAIN, TRAIN_DIR, UNSHIPPED_TRAIN  # the corpora, the blind writers' splits
 
 # The blind writers' files the detector reads, in order: the head's (BLIND_TRAIN) and two writers' situations that the
 # shipped head is not trained on (UNSHIPPED_TRAIN, eighth session: motion texts here).

@@ -2,7 +2,7 @@
 
 import pytest
 
-from experiments import bench_semantics as bs
+from experiments import bench_semantics_scores as bs
 from tools import nomotion_frontier as nf
 from tools import semantics_system_dev as sd
 

@@ -7,7 +7,7 @@ import pytest
 
 from experiments import bench_semantics
 from jgrounding.vocabulary import INTENSITIES, INTENTS
-from tools import semantic_sets, semantics_system_dev, train_semantics
+from tools import semantic_sets, semantics_data, semantics_system_dev, train_semantics
 from tools.semantics_corpus import EVAL_SPLITS
 from tools.semantics_corpus import normalized as _norm
 from tools.train_semantics import read_jsonl as _rows
@@ -38,7 +38,7 @@ def _evaluated() -> dict[str, Path]:
     return files
 
 
-BLIND_FILES = train_semantics.BLIND_TRAIN + train_semantics.UNSHIPPED_TRAIN  # what the head and the detector read
+BLIND_FILES = train_semantics.BLIND_TRAIN + semantics_data.UNSHIPPED_TRAIN  # what the head and the detector read
 
 
 @pytest.mark.parametrize("path", BLIND_FILES, ids=lambda p: f"{p.parent.name}/{p.name}")
@@ -78,7 +78,7 @@ def test_no_training_text_is_one_the_project_evaluates_on():
     with the frozen benches, the dev and test splits or the ship rule's situation hold-out."""
     train = {}
     files = {name: path for name, (path, _) in train_semantics.train_files().items()}
-    files |= {f"{p.parent.name}/{p.name}": p for p in train_semantics.UNSHIPPED_TRAIN}  # the detector reads them
+    files |= {f"{p.parent.name}/{p.name}": p for p in semantics_data.UNSHIPPED_TRAIN}  # the detector reads them
     for name, path in files.items():
         for r in _rows(path):
             train.setdefault(_norm(r["text"]), name)
