@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments import bench_semantics as bs
+from experiments import bench_semantics
+from experiments import bench_semantics_scores as bs
 
 OUT = bs.RESULTS / "bench_acting"
 GOALS = {"outright": 0.97, "situation": 0.85, "none_held": 0.95, "acted_wrong": 0.01}
@@ -132,7 +133,7 @@ def main(argv=None) -> int:
     if semantics.mllm_configured():
         print("an MLLM endpoint is configured (JGROUNDING_MLLM_URL): unset it, this reads the offline decision")
         return 1
-    items = [it for path in bs.BENCH_V3.values() for it in bs.read_jsonl(path)]
+    items = [it for path in bench_semantics.BENCH_V3.values() for it in bs.read_jsonl(path)]
     point = decision.point()
     print(f"the frozen blind benches, {len(items)} texts ({bs.machine()}); operating point {point.thresholds}")
     before, after = [], []
@@ -146,7 +147,7 @@ def main(argv=None) -> int:
     res["goals"] = GOALS
     res["goals_met_after"] = goals_met(res["after"])
     res["point"] = {"thresholds": point.thresholds, "detector": point.detector}
-    res["benches"] = sorted(bs.BENCH_V3)
+    res["benches"] = sorted(bench_semantics.BENCH_V3)
     text = table(res)
     print(text)
     met = res["goals_met_after"]
@@ -155,7 +156,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     md = (
         f"The act/hold decision on the frozen blind benches, read once (`python -m experiments.bench_acting`; "
-        f"{bs.machine()}): {len(items)} texts of {len(bs.BENCH_V3)} benches ({', '.join(sorted(bs.BENCH_V3))}), each "
+        f"{bs.machine()}): {len(items)} texts of {len(bench_semantics.BENCH_V3)} benches ({', '.join(sorted(bench_semantics.BENCH_V3))}), each "
         "grounded alone by the shipped head. Before: one threshold (the head's calibrated one) for every text. After: "
         "one decision per kind of text at the operating point fitted on dev "
         f"(`results/nomotion_frontier.md`: {json.dumps(point.thresholds)}, detector {point.detector}). Texts that ask "

@@ -30,9 +30,9 @@ def package_file(*parts: str) -> Path:
 def asset(*parts: str) -> Path:
     """The one place run-time data is found: ``jgrounding/assets/<parts>``, package data of the wheel. It holds
     the shipped checkpoints and ``checkpoints/shipped.json``, the semantic head and its nearest-neighbour table,
-    the intent embeddings and cue prototypes, the demonstration library (``library.npz`` + ``library.json``) and
-    ``trunk.xml``; ``asset()`` is the folder. Development data (training corpora, evaluation sets, examples)
-    stays in the repository's top-level ``assets/``."""
+    the intent embeddings and cue prototypes, the demonstration library (``library.npz`` + ``library.json``), the
+    library designs' code words (``designs/``) and ``trunk.xml``; ``asset()`` is the folder. Development data
+    (training corpora, evaluation sets, examples) stays in the repository's top-level ``assets/``."""
     return package_file("assets", *parts)
 
 

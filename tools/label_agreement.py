@@ -4,10 +4,10 @@ the semantic bench are read against.
     python -m tools.label_agreement           # the two readers
     python -m tools.label_agreement --head    # and the shipped head (jg.ground_many) against each reader
 
-The hold-out (``assets/semantics_dev_situations_blind.jsonl``, the ship rule's situation term) was labelled by its
+The hold-out (``assets/semantics/dev/situations_blind/situations.jsonl``, the ship rule's situation term) was labelled by its
 writer. A second reader, a helper given only ``docs/semantics_second_reader_brief.md`` (the vocabulary of the
 writers' brief) and the 256 texts shuffled under new ids, labelled each text again
-(``assets/semantics_dev_situations_second_reader.jsonl``). Situation-only texts imply their intensity, so how often
+(``assets/semantics/dev/situations_blind/second_reader.jsonl``). Situation-only texts imply their intensity, so how often
 two readers give the same one says how much of the intensity goal (exact >= 0.80) the labels themselves allow.
 The head's rows are optimistic: the hold-out is a dev set, read by the ship score and the threshold's fit.
 """
@@ -17,10 +17,11 @@ from __future__ import annotations
 import argparse
 
 from jgrounding.vocabulary import INTENSITIES
-from tools.train_semantics import ROOT, SITUATION_DEV, read_jsonl
+from tools import semantic_sets
+from tools.semantics_data import SITUATION_DEV, read_jsonl
 
 WRITER = SITUATION_DEV  # the hold-out as its writer labelled it
-SECOND = ROOT / "assets" / "semantics_dev_situations_second_reader.jsonl"
+SECOND = semantic_sets.path("dev/situations_blind", "second_reader.jsonl")
 
 
 def read_labels(path) -> dict[str, tuple[str, str]]:

@@ -240,7 +240,7 @@ The others ({single}) have one form plus a small left/right tilt of the tip.
 {primitives.SUBTLE_SCALE:.0%} as hard and reaches each key pose one key moment later (slower); moderate and pronounced
 are 1/3 and 2/3 of the way. The ends were refined, within {design_signatures.TRUST}
 of each written pull, so that two intents at one intensity, two variants and two intensity levels two apart are as
-far apart in RMS as the gestures allow (`python -m tools.design_signatures`, `jgrounding/library/signatures.py`)."""
+far apart in RMS as the gestures allow (`python -m tools.design_signatures`, `jgrounding/assets/designs/code_v3.json`)."""
     two = [m for m in INTENTS if design.num_variants[INTENTS.index(m)] == 2]
     three = [m for m in INTENTS if design.num_variants[INTENTS.index(m)] == 3]
     split = 4 * (len(two) + len(three))
@@ -266,7 +266,7 @@ realization: the held-out variant is the one with fewer training realizations in
 not in all (what a method could otherwise learn to predict). The evaluation set is balanced over the variants (8 + 8, 6 + 5 + 5).
 The others ({single}) have one form plus a small left/right tilt of the tip.
 
-*The code* (`python -m tools.design_library{flag}`, `jgrounding/library/signatures_v{design.version}.py`). Each (intent, variant,
+*The code* (`python -m tools.design_library{flag}`, `jgrounding/assets/designs/code_v{design.version}.json`). Each (intent, variant,
 intensity) is one *word*: every tendon slack or pulled (at 0.6, 0.75, 0.9 or 1.0 of the largest safe pull) at each of
 the three key moments after rest. Words were chosen, among those that pull only the tendons the intent's written
 anchor uses and pass its kinematic rule at that intensity in simulation, by simulated annealing on the RMS between

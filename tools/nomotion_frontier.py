@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments import bench_semantics as bs
+from experiments import bench_semantics_scores as bs
 from tools import semantics_system_dev as sd
 
 GRID = tuple(round(x, 3) for x in np.arange(0.0, 1.0, 0.025)) + (1.01,)  # 1.01: that kind never acts
@@ -206,7 +206,7 @@ def report(r: dict, shipped, chosen: tuple[dict, float], rows, frontier) -> tupl
             res[label][f"style {s}"]["held_by_no_motion"] = float(by_no_motion[m].mean())
             res[label][f"style {s}"]["held_by_threshold"] = float(by_threshold[m].mean())
         res[label] |= {f"set {s}": figures(r, hold, r["set"] == s) for s in dict.fromkeys(r["set"].tolist())}
-    f = bs._fmt
+    f = bs.fmt
     lines = [
         "| point | " + " | ".join(f"{k} threshold" for k in KINDS) + " | detector | expected cost | motion acted right "
         "| motion held | wrong intent acted | no-motion held |",

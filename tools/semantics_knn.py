@@ -4,7 +4,7 @@
     python -m tools.semantics_knn --write  # the best variant of CHOICES: jgrounding/assets/semantic_knn.npz
 
 For every text the shipped head (``jgrounding/assets/semantic_head.npz``) already computes its tuned encoder's four pooled
-vectors and its hidden layer. Here the training texts (``assets/semantics_train/*.jsonl``) are put through the
+vectors and its hidden layer. Here the training texts (``assets/semantics/train/corpora/*.jsonl``) are put through the
 same path once, and a dev text's intent distribution becomes
 
     p = (1 - a) p_head + a p_knn,    p_knn = the (similarity-weighted) intent vote of its k nearest training texts
@@ -16,230 +16,55 @@ applies, k, a) the confidence threshold is refitted on v2 dev as :mod:`tools.tra
 temperature on the blend first), and the variant is scored with its functions, and on the two situation hold-outs
 (:data:`HOLDOUTS`) at that threshold. The table may hold, beyond the training texts, rows the head was never trained
 on (:data:`VOTE_ROWS`). The test splits are never read.
-Features are cached in ``.cache/semantics/`` keyed by the head's digest and the texts.
+Features are cached in ``.cache/semantics/`` keyed by the head's digest and the texts. The vote's parts (features,
+representations, the vote, its gate, a variant's score and the ship rule) are :mod:`tools.semantics_vote`; this module
+compares the variants and writes the table.
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
-import io
 import itertools
 import json
 from pathlib import Path
 
 import numpy as np
 
-from jgrounding.semantics import calibration, features
 from jgrounding.semantics import head as sh
-from tools import train_semantics as ts
+from tools import semantic_sets
+from tools import semantics_calibration as calib
+from tools import semantics_data as data
+from tools import semantics_vote as sv
 
-ROOT = ts.ROOT
+ROOT = data.ROOT
 REPORT = ROOT / "results" / "semantics_dev_knn.json"
 # Situation-only texts written for selection by writers who saw neither the code, the training corpora nor the
 # evaluation sets (v2 dev holds 29 situations): scored beside v2 dev, never trained on, not part of the vote's ship
-# rule (the "blind" ones are a term of the head's ship score in tools.train_semantics: ts.SITUATION_DEVS).
+# rule (the "blind" ones are a term of the head's ship score in tools.train_semantics: data.SITUATION_DEVS).
 # "hold-out": 320 texts from docs/semantics_writing_brief.md (a brief that says which situations call for which
-# behaviour); "blind": ts.SITUATION_DEVS, as the head's calibration reads them: 256 texts from
+# behaviour); "blind": data.SITUATION_DEVS, as the head's calibration reads them: 256 texts from
 # docs/semantics_blind_brief.md (the intents' descriptions and the style, as the v2 evaluation set's writer had them)
 # and, since the eighth session, a second writer's 320 from the same brief.
 HOLDOUTS = {
-    "hold-out": (ROOT / "assets" / "semantics_dev_situations.jsonl",),
-    "blind": ts.SITUATION_DEVS,
+    "hold-out": semantic_sets.files("dev/situations_holdout"),
+    "blind": data.SITUATION_DEVS,
 }
 # Rows the vote's table holds beyond the training corpora (the head is not trained on them, so
 # tools.train_semantics still rebuilds the shipped head): 1,024 situations written from the blind brief.
-VOTE_ROWS = ROOT / "assets" / "semantics_vote"
-POOL = features.EMBED_DIM  # one pooled vector
-POOLED = features.POOLED_FEATURES  # the extras follow the tuned encoder's poolings in the head's inputs
+VOTE_ROWS = semantic_sets.files("train/vote")
 # The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
 # corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
 # this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
 # (A head retrained with a second situations corpus and a vote for every text, chosen on the situation hold-out,
 # did worse on the frozen v2 test and was not kept: docs/how_it_works.md.)
 # The seventh session added an intensity vote (b: its weight; 0: none) from the same neighbours, and a table that
-# also holds the blind writers' training situations (ts.BLIND_TRAIN); both are chosen on v2 dev as the rest
+# also holds the blind writers' training situations (data.BLIND_TRAIN); both are chosen on v2 dev as the rest
 # (:data:`CHOICES`).
 CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5, b=0.0)
 # The variants of the chosen family that `--write` (and `--chosen-only`) scores through the shipped blend: each
 # table, with and without the intensity vote. The one written is the highest v2 dev score among those that pass
-# the ship rule (:func:`qualifies`), ties to the earlier.
+# the ship rule (:func:`tools.semantics_vote.qualifies`), ties to the earlier.
 CHOICES = tuple(dict(CHOSEN, table=table, b=b) for table in ("no-generated", "no-generated+blind") for b in (0.0, 0.5))
-
-
-def head_features(head, texts: list[str], cache_dir=ts.CACHE) -> np.ndarray:
-    """The shipped head's inputs ``(N, F)`` of ``texts`` (its tuned encoder's pools and the extras), cached."""
-    from jgrounding.io import write_atomic
-
-    key = hashlib.sha256(("\n".join(texts) + head.meta["params_digest"]).encode()).hexdigest()[:16]
-    path = Path(cache_dir) / f"knn-{key}.npz"
-    if path.exists():
-        with np.load(path) as f:
-            return f["x"]
-    print(f"  encoding {len(texts)} texts with the shipped head's encoder", flush=True)
-    x = features.head_inputs(head, texts)
-    buf = io.BytesIO()
-    np.savez(buf, x=x)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, buf.getvalue())
-    return x
-
-
-def hidden(params, x) -> np.ndarray:
-    """The head's hidden layer ``(N, H)`` (gelu, tanh form as jax.nn.gelu's default)."""
-    z = x @ np.asarray(params["w1"]) + np.asarray(params["b1"])
-    return 0.5 * z * (1 + np.tanh(np.sqrt(2 / np.pi) * (z + 0.044715 * z**3)))
-
-
-def representation(kind: str, params, x) -> np.ndarray:
-    """Unit vectors of one representation: "sentence" (pool 0), "chosen" (pool 1), "pools" (all four pooled
-    vectors) or "hidden" (the head's hidden layer)."""
-    v = {
-        "sentence": lambda: x[:, :POOL],
-        "chosen": lambda: x[:, POOL : 2 * POOL],
-        "pools": lambda: x[:, :POOLED],
-        "hidden": lambda: hidden(params, x),
-    }[kind]()
-    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
-
-
-def knn_vote(q: np.ndarray, table: np.ndarray, labels: np.ndarray, k: int, tau: float) -> np.ndarray:
-    """Intent vote ``(N, 17)`` of each query's ``k`` nearest table rows (cosine); weights exp(sim / tau), or equal
-    when ``tau`` is 0."""
-    sim = q @ table.T
-    top = np.argsort(-sim, axis=1)[:, :k]
-    s = np.take_along_axis(sim, top, 1)
-    w = np.ones_like(s) if tau == 0 else np.exp((s - s[:, :1]) / tau)
-    out = np.zeros((len(q), sh.NUM_CLASSES))
-    for j in range(k):
-        np.add.at(out, (np.arange(len(q)), labels[top[:, j]]), w[:, j])
-    return out / out.sum(1, keepdims=True)
-
-
-def no_motion_words(x) -> np.ndarray:
-    """Texts whose chosen part names no action, with no rejected part and no log, system, not-understood or
-    background cue ``(N,)`` (read from the head's extras: what a situation-only text looks like)."""
-    from jgrounding.semantics.structure import FLAGS
-    from jgrounding.vocabulary import NUM_INTENTS
-
-    extras = x[:, POOLED:]
-    lex = extras[:, :NUM_INTENTS]
-    flags = extras[:, features.TUNED_FLAGS_START :]
-    cues = [FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]
-    return (lex.sum(1) == 0) & (flags[:, cues].sum(1) == 0)
-
-
-def gate_vector(num_extras: int) -> np.ndarray:
-    """The extras' columns that must all be zero for the vote to apply ``(E,)`` (as :func:`no_motion_words`)."""
-    from jgrounding.semantics.structure import FLAGS
-    from jgrounding.vocabulary import NUM_INTENTS
-
-    g = np.zeros(num_extras, np.float32)
-    g[:NUM_INTENTS] = 1.0
-    g[[features.TUNED_FLAGS_START + FLAGS.index(f) for f in sh.KNN_GATE_FLAGS]] = 1.0
-    return g
-
-
-def sharpen(p: np.ndarray, t: float) -> np.ndarray:
-    """A temperature on a distribution ``(N, C)``: p^(1/t), renormalised (:func:`jgrounding.semantics.head.knn_blend`
-    applies the same to the shipped blend)."""
-    q = np.exp(np.log(np.clip(p, 1e-12, 1)) / t)
-    return q / q.sum(1, keepdims=True)
-
-
-def evaluate(
-    pm, pz, dev, pm_plain, pz_plain, plain, refit_temperature: bool, held=None, budgets=(), target=ts.TARGET_WRONG
-) -> dict:
-    """Threshold (and optionally a temperature on the blend) fitted on v2 dev; the dev metrics and score.
-    ``target``: the confident-wrong budget on v2 dev (a vote's is the head's own rate where that is lower:
-    :func:`vote_target`).
-    ``held``: hold-out name -> ``(p_intent, p_intensity, rows)``, each scored at the same threshold. ``budgets``:
-    confident-wrong budgets (:data:`BUDGETS`) whose thresholds and what they act on are reported too."""
-    dev_intent, _ = ts.labels(dev)
-    temperature = 1.0
-    if refit_temperature:
-        temperature = calibration.fit_temperature(lambda t: sharpen(pm, t), dev_intent)
-        pm, pm_plain = sharpen(pm, temperature), sharpen(pm_plain, temperature)
-    held = {
-        name: (sharpen(hm, temperature) if refit_temperature else hm, hz, hrows)
-        for name, (hm, hz, hrows) in (held or {}).items()
-    }
-    # the head's rule (ts.calibrate_threshold): v2 dev's confident wrongs, and the blind situations' ones
-    threshold = ts.calibrate_threshold(pm, pz, dev, target=target, situations=held.get("blind"))
-    r = ts.selective(pm, pz, dev, threshold)
-    rp = ts.selective(pm_plain, pz_plain, plain, threshold)
-    holdout = {name: ts.selective(*h, threshold) for name, h in held.items()}
-    m, _, _ = sh.decide(pm, pz)
-    sit = np.array([row.get("style") == "situation" for row in dev])
-    report = {}  # what a tighter confident-wrong budget than ts.TARGET_WRONG would cost, at the same probabilities
-    for target in budgets:  # the situations' budget: the same, or the shipped one where that is tighter
-        t = ts.calibrate_threshold(
-            pm,
-            pz,
-            dev,
-            target=target,
-            situations=held.get("blind"),
-            situation_target=min(target, ts.SITUATION_TARGET_WRONG),
-        )
-        report[target] = {"threshold": t, "dev": ts.selective(pm, pz, dev, t)}
-        report[target] |= {name: ts.selective(*h, t) for name, h in held.items()}
-    return dict(
-        budgets=report,
-        score=ts.dev_score(r, rp),
-        situation=float(np.mean(m[sit] == dev_intent[sit])),
-        threshold=threshold,
-        blend_temperature=temperature,
-        dev=r,
-        plain_intent=rp["intent_motion"],
-        holdout=holdout,
-        _m=m,
-    )
-
-
-# Confident-wrong budgets on v2 dev whose thresholds the chosen variant's line reports (the situation hold-out's stays
-# ts.SITUATION_TARGET_WRONG, or the budget where that is tighter): the shipped one (ts.TARGET_WRONG, 2 % on
-# dev) first, then tighter ones (#34's goal on the frozen benches is 1 %).
-BUDGETS = (ts.TARGET_WRONG, 0.015, 0.01)
-
-
-def budget_line(v: dict) -> str:
-    """The threshold each of :data:`BUDGETS` gives, and what it acts on (dev and every hold-out)."""
-    return "; ".join(
-        f"budget {target:.3f}: thr {b['threshold']:.3f} dev acted {b['dev']['coverage_motion']:.3f}"
-        f" wrong {b['dev']['confident_wrong']:.3f} held {b['dev']['none_held']:.3f}"
-        + "".join(
-            f" {name} acted {h['coverage_motion']:.3f} wrong {h['confident_wrong']:.3f}"
-            for name, h in b.items()
-            if name not in ("threshold", "dev")
-        )
-        for target, b in v["budgets"].items()
-    )
-
-
-METRICS = ("intent_motion", "intensity_exact", "intensity_within_one", "coverage_motion", "none_held")
-
-
-def vote_target(base: dict) -> float:
-    """The confident-wrong budget on v2 dev of a vote's threshold: ts.TARGET_WRONG, or the head's own rate at its
-    threshold where that is lower. The ship rule (:func:`qualifies`) lets no vote add confident wrongs on dev, so a
-    vote's threshold is the lowest that adds none, rather than one at the looser budget that the rule then refuses
-    (eighth session: the head calibrated on two situation hold-outs acts at 0.950 with 0.6 % confident wrong on v2
-    dev, and every vote at its 2 % threshold, 0.850, failed on 1.9 %)."""
-    return min(ts.TARGET_WRONG, base["dev"]["confident_wrong"])
-
-
-def qualifies(v: dict, base: dict) -> bool:
-    """The ship rule: a higher dev score and situation accuracy, no other dev metric worse. The situation hold-out
-    is reported beside it, not part of it: a variant chosen on the hold-out did worse on the frozen v2 test."""
-    d, b = v["dev"], base["dev"]
-    return (
-        v["score"] > base["score"] + 1e-9
-        and v["situation"] > base["situation"] + 1e-9
-        and all(d[k] >= b[k] - 1e-9 for k in METRICS)
-        and d["confident_wrong"] <= b["confident_wrong"] + 1e-9
-        and d["ece"] <= b["ece"] + 1e-9
-        and v["plain_intent"] >= base["plain_intent"] - 1e-9
-    )
 
 
 def main(argv=None) -> int:
@@ -278,20 +103,20 @@ def main(argv=None) -> int:
         )
     rows, files = table_rows()
     # Every set a variant is scored on: v2 dev (threshold and ship rule), plain dev and the hold-outs.
-    sets = {"dev": ts.read_jsonl(ts.DEV), "plain": ts.read_jsonl(ts.DEV_PLAIN)}
+    sets = {"dev": data.read_jsonl(data.DEV), "plain": data.read_jsonl(data.DEV_PLAIN)}
     holds = [name for name, paths in HOLDOUTS.items() if all(path.exists() for path in paths)]
-    sets |= {name: ts.read_situations(HOLDOUTS[name]) for name in holds}
-    x_train = head_features(head, [r["text"] for r in rows])
-    x = {n: head_features(head, [r["text"] for r in set_rows]) for n, set_rows in sets.items()}
+    sets |= {name: data.read_situations(HOLDOUTS[name]) for name in holds}
+    x_train = sv.head_features(head, [r["text"] for r in rows])
+    x = {n: sv.head_features(head, [r["text"] for r in set_rows]) for n, set_rows in sets.items()}
     p_head = {n: [np.asarray(a, np.float64) for a in sh.predict(head.params, x[n], head.temperature)] for n in sets}
     pz_head = {n: p[1] for n, p in p_head.items()}  # the intensity stays the head's (unless an intensity vote)
 
     def scored(pm: dict, refit: bool, budgets=(), pz: dict | None = None, target=None) -> dict:
         """:func:`evaluate` of intent probabilities for every set, with the head's intensities or ``pz``'s, at the
-        dev budget ``target`` (default: the votes', :func:`vote_target`; the head alone is scored at ts.TARGET_WRONG)."""
+        dev budget ``target`` (default: the votes', :func:`tools.semantics_vote.vote_target`; the head alone is scored at calib.TARGET_WRONG)."""
         pz = pz or pz_head
         held = {n: (pm[n], pz[n], sets[n]) for n in holds}
-        return evaluate(
+        return sv.evaluate(
             pm["dev"],
             pz["dev"],
             sets["dev"],
@@ -301,13 +126,13 @@ def main(argv=None) -> int:
             refit,
             held=held,
             budgets=budgets,
-            target=vote_target(base) if target is None else target,
+            target=sv.vote_target(base) if target is None else target,
         )
 
-    train_intent, train_intensity = ts.labels(rows)
+    train_intent, train_intensity = data.labels(rows)
     style = np.array([r.get("style") or "" for r in rows])
     dev, plain = sets["dev"], sets["plain"]
-    base = scored({n: p[0] for n, p in p_head.items()}, False, target=ts.TARGET_WRONG)
+    base = scored({n: p[0] for n, p in p_head.items()}, False, target=calib.TARGET_WRONG)
     assert base["threshold"] == head.threshold, "the refit must give the shipped head's threshold"
     print(
         f"shipped head: score {base['score']:.3f} situation {base['situation']:.3f} "
@@ -328,7 +153,7 @@ def main(argv=None) -> int:
         return write(head, x_train, train_intent, train_intensity, tables, x, p_head, scored, base, **opts)
     gates = {
         "always": {n: np.ones(len(sets[n]), bool) for n in sets},
-        "no motion words": {n: no_motion_words(x[n]) for n in sets},
+        "no motion words": {n: sv.no_motion_words(x[n]) for n in sets},
     }
     print(
         f"no motion words: {gates['no motion words']['dev'].sum()} of {len(dev)} v2 dev texts, "
@@ -336,20 +161,20 @@ def main(argv=None) -> int:
     )
     variants = []
     for rep in ("sentence", "chosen", "pools", "hidden"):
-        t_all = representation(rep, head.params, x_train)
-        q = {n: representation(rep, head.params, x[n]) for n in sets}
+        t_all = sv.representation(rep, head.params, x_train)
+        q = {n: sv.representation(rep, head.params, x[n]) for n in sets}
         for (tname, tmask), (gname, gate) in itertools.product(tables.items(), gates.items()):
             if tname.startswith("situations") and gname == "always":
                 continue  # a situation-only table votes for every text only behind the gate
             for k, tau in itertools.product((5, 10, 20, 40), (0.0, 0.05)):
-                votes = {n: knn_vote(q[n], t_all[tmask], train_intent[tmask], k, tau) for n in sets}
+                votes = {n: sv.knn_vote(q[n], t_all[tmask], train_intent[tmask], k, tau) for n in sets}
                 for a, refit in itertools.product((0.1, 0.2, 0.3, 0.5, 0.7), (False, True)):
                     blend = {
                         n: np.where(gate[n][:, None], (1 - a) * p_head[n][0] + a * votes[n], p_head[n][0]) for n in sets
                     }
                     r = scored(blend, refit)
                     r |= dict(representation=rep, table=tname, gate=gname, k=k, tau=tau, a=a, refit_temperature=refit)
-                    r["qualifies"] = qualifies(r, base)
+                    r["qualifies"] = sv.qualifies(r, base)
                     variants.append(r)
     print(f"{len(variants)} variants; {sum(v['qualifies'] for v in variants)} pass the ship rule on dev")
     keys = ("representation", "table", "gate")
@@ -359,7 +184,7 @@ def main(argv=None) -> int:
         if kk not in best or (v["score"], v["situation"]) > (best[kk]["score"], best[kk]["situation"]):
             best[kk] = v
     sit = np.array([row.get("style") == "situation" for row in dev])
-    intent, _ = ts.labels(dev)
+    intent, _ = data.labels(dev)
     for v in sorted(best.values(), key=lambda v: -v["score"]):
         d = v["dev"]
         fixed = [dev[i]["id"] for i in np.where(sit & (v["_m"] == intent) & (base["_m"] != intent))[0]]
@@ -398,34 +223,17 @@ def _holdout_line(v: dict) -> str:
 
 
 def table_rows() -> tuple[list[dict], np.ndarray]:
-    """The rows the vote's table may hold: the training corpora (``assets/semantics_train/``), the vote-only rows
+    """The rows the vote's table may hold: the training corpora (``assets/semantics/train/corpora/``), the vote-only rows
     (:data:`VOTE_ROWS`) and then the blind writers' training splits (:data:`tools.train_semantics.BLIND_TRAIN`),
     with each row's file name ``(N,)`` (a blind split's as ``blind/<folder>/<name>``)."""
     rows, files = [], []
-    named = [(path, path.name) for path in [*sorted(ts.TRAIN_DIR.glob("*.jsonl")), *sorted(VOTE_ROWS.glob("*.jsonl"))]]
-    named += [(Path(path), f"blind/{Path(path).parent.name}/{Path(path).name}") for path in ts.BLIND_TRAIN]
+    named = [(path, path.name) for path in [*sorted(data.TRAIN_DIR.glob("*.jsonl")), *VOTE_ROWS]]
+    named += [(Path(path), f"blind/{Path(path).parent.name}/{Path(path).name}") for path in data.BLIND_TRAIN]
     for path, name in named:
-        part = ts.read_jsonl(path)
+        part = data.read_jsonl(path)
         rows += part
         files += [name] * len(part)
     return rows, np.array(files)
-
-
-def best_passing(scores: list[float], passes: list[bool]) -> int | None:
-    """Which of :data:`CHOICES` ships: the index of the highest dev score among those that pass the ship rule, the
-    earlier on a tie (None: none passes)."""
-    ok = [i for i, p in enumerate(passes) if p]
-    return max(ok, key=lambda i: (round(scores[i], 9), -i)) if ok else None
-
-
-def fit_situation_temperature(pm: np.ndarray, gated: np.ndarray, rows: list[dict]) -> float:
-    """The temperature on the blend of the texts the vote's gate lets through (``gated`` ``(N,)``), fitted (NLL of
-    the 17 classes, :func:`jgrounding.semantics.calibration.fit_temperature`) on those of ``rows`` (the blind
-    situation hold-outs, :data:`tools.train_semantics.SITUATION_DEVS`) from their blended intent probabilities
-    ``pm`` ``(N, 17)``. Ninth session: the head's temperature is fitted on v2 dev and the hold-outs pooled, and on the
-    hold-outs' situations the blend came out underconfident (right 0.5-0.9 of the time more often than it said)."""
-    intent, _ = ts.labels(rows)
-    return calibration.fit_temperature(lambda t: sharpen(pm[gated], t), intent[gated])
 
 
 def write(
@@ -452,13 +260,13 @@ def write(
     if CHOSEN["representation"] not in sh.KNN_POOLS:
         raise SystemExit(f"the shipped blend reads one pooled vector: {', '.join(sh.KNN_POOLS)}")
     pool = sh.KNN_POOLS.index(CHOSEN["representation"])
-    gate = gate_vector(x["dev"].shape[1] - POOLED)
+    gate = sv.gate_vector(x["dev"].shape[1] - sv.POOLED)
     if CHOSEN["gate"] == "always":
         gate = np.zeros_like(gate)
     refit = CHOSEN.get("refit_temperature", False)
 
     def blended(mask, b: float = 0.0):
-        table = representation(CHOSEN["representation"], head.params, x_train[mask]).astype(np.float16)
+        table = sv.representation(CHOSEN["representation"], head.params, x_train[mask]).astype(np.float16)
         labels, intensities = train_intent[mask], train_intensity[mask]
         knn = {"table": table, "onehot": np.eye(sh.NUM_CLASSES, dtype=np.float32)[labels], "gate": gate}
         knn |= {"tau": np.float32(CHOSEN["tau"]), "a": np.float32(CHOSEN["a"])}
@@ -468,12 +276,14 @@ def write(
         def vote(xs, p):
             if not len(xs):
                 return p
-            q = xs[:, pool * POOL : (pool + 1) * POOL]
-            pm, pz = sh.knn_blend(knn, p[0].astype(np.float32), p[1].astype(np.float32), q, xs[:, POOLED:], CHOSEN["k"])
+            q = xs[:, pool * sv.POOL : (pool + 1) * sv.POOL]
+            pm, pz = sh.knn_blend(
+                knn, p[0].astype(np.float32), p[1].astype(np.float32), q, xs[:, sv.POOLED :], CHOSEN["k"]
+            )
             return np.asarray(pm, np.float64), np.asarray(pz, np.float64)
 
         out = {n: vote(x[n], p) for n, p in p_head.items()}
-        r = scored({n: o[0] for n, o in out.items()}, refit, BUDGETS, pz={n: o[1] for n, o in out.items()})
+        r = scored({n: o[0] for n, o in out.items()}, refit, sv.BUDGETS, pz={n: o[1] for n, o in out.items()})
         return table, labels, intensities, r | {"_out": out}
 
     for name, mask in tables.items():
@@ -486,7 +296,7 @@ def write(
     scored_choices = []
     for choice in CHOICES:
         table, labels, intensities, r = blended(tables[choice["table"]], choice["b"])
-        ok = qualifies(r, base)
+        ok = sv.qualifies(r, base)
         d = r["dev"]
         print(
             f"{choice} ({len(labels)} rows): score {r['score']:.3f} situation {r['situation']:.3f}"
@@ -494,11 +304,11 @@ def write(
             f" plain {r['plain_intent']:.3f} {_holdout_line(r)}; ship rule: {ok}"
         )
         print(
-            f"  confident-wrong budgets on v2 dev (ts.TARGET_WRONG {ts.TARGET_WRONG}; situation hold-out"
-            f" {ts.SITUATION_TARGET_WRONG} or the budget): {budget_line(r)}"
+            f"  confident-wrong budgets on v2 dev (TARGET_WRONG {calib.TARGET_WRONG}; situation hold-out"
+            f" {calib.SITUATION_TARGET_WRONG} or the budget): {sv.budget_line(r)}"
         )
         scored_choices.append((choice, table, labels, intensities, r, ok))
-    pick = best_passing([c[4]["score"] for c in scored_choices], [c[-1] for c in scored_choices])
+    pick = sv.best_passing([c[4]["score"] for c in scored_choices], [c[-1] for c in scored_choices])
     if dry and pick is not None:
         print(f"would write {scored_choices[pick][0]}")
     if dry and (pick is None or not situation_temperature):
@@ -516,11 +326,11 @@ def write(
     t_sit = 1.0
     if situation_temperature:
         blended_choice = r["_out"]
-        gated = {n: no_motion_words(x[n]) if gate.any() else np.ones(len(x[n]), bool) for n in x}
-        rows = ts.read_situations(HOLDOUTS["blind"])
-        t_sit = fit_situation_temperature(blended_choice["blind"][0], gated["blind"], rows)
-        sharp = {n: np.where(gated[n][:, None], sharpen(o[0], t_sit), o[0]) for n, o in blended_choice.items()}
-        r = scored(sharp, refit, BUDGETS, pz={n: o[1] for n, o in blended_choice.items()})
+        gated = {n: sv.no_motion_words(x[n]) if gate.any() else np.ones(len(x[n]), bool) for n in x}
+        rows = data.read_situations(HOLDOUTS["blind"])
+        t_sit = sv.fit_situation_temperature(blended_choice["blind"][0], gated["blind"], rows)
+        sharp = {n: np.where(gated[n][:, None], sv.sharpen(o[0], t_sit), o[0]) for n, o in blended_choice.items()}
+        r = scored(sharp, refit, sv.BUDGETS, pz={n: o[1] for n, o in blended_choice.items()})
         d = r["dev"]
         print(
             f"with a situation temperature {t_sit:.3f} (fitted on the blind hold-outs' gated texts): score"

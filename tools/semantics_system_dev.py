@@ -7,10 +7,10 @@ vote, the no-motion decision), one text at a time, scored with ``bench semantics
 
 The sets: v2 dev and the plainly worded dev split (what a head and a vote are chosen on), the blind situation
 hold-outs (:data:`tools.train_semantics.SITUATION_DEVS`, which calibrate the head and the vote's situation
-temperature), the situation hold-out that nothing is fitted on (``assets/semantics_dev_situations.jsonl``,
+temperature), the situation hold-out that nothing is fitted on (``assets/semantics/dev/situations_holdout/situations.jsonl``,
 written from another brief), and two more sets that nothing is trained or fitted on: a second
-unfitted situation hold-out (``assets/semantics_dev_situations_s26.jsonl``, a blind writer from the situation brief)
-and a no-motion dev set (``assets/semantics_dev_nomotion/dev.jsonl``, a blind writer from the no-motion brief: texts
+unfitted situation hold-out (``assets/semantics/dev/situations_s26/situations.jsonl``, a blind writer from the situation brief)
+and a no-motion dev set (``assets/semantics/dev/nomotion/dev.jsonl``, a blind writer from the no-motion brief: texts
 that call for no motion and contrast texts). No test split or blind bench is read.
 
 The ship rule for a change to calibration (:data:`RULE`, written before the first run of the change it judged, a situation
@@ -33,7 +33,8 @@ import json
 import sys
 from pathlib import Path
 
-from experiments import bench_semantics as bs
+from experiments import bench_semantics_scores as bs
+from tools import semantic_sets
 from tools import train_semantics as ts
 
 ROOT = ts.ROOT
@@ -45,9 +46,9 @@ SETS = {
     "v2 dev": (ts.DEV,),
     "plain dev": (ts.DEV_PLAIN,),
     "blind hold-outs": ts.SITUATION_DEVS,
-    UNFITTED: (ROOT / "assets" / "semantics_dev_situations.jsonl",),
-    UNFITTED2: (ROOT / "assets" / "semantics_dev_situations_s26.jsonl",),
-    NO_MOTION_DEV: (ROOT / "assets" / "semantics_dev_nomotion" / "dev.jsonl",),
+    UNFITTED: semantic_sets.files("dev/situations_holdout"),
+    UNFITTED2: semantic_sets.files("dev/situations_s26"),
+    NO_MOTION_DEV: semantic_sets.files("dev/nomotion"),
 }
 POOLED = {"v2 + plain dev": ("v2 dev", "plain dev"), UNFITTED_BOTH: (UNFITTED, UNFITTED2)}
 HIGHER = ("intent", "acted", "exact", "none_held")  # none of these may fall on v2 dev or plain dev

@@ -6,15 +6,15 @@
 The hand-written rule of :mod:`jgrounding.semantics.nomotion` holds what its phrases match and misses other
 wording; the detector learns the same decision from examples. Data (nothing else is read):
 
-- **no motion** (label 1): the texts with intent ``none`` of ``assets/semantics_eval_v3/train.jsonl`` (two blind
-  writers' nine kinds) and ``assets/semantics_eval_w3/train.jsonl`` (a third blind writer's, the same kinds);
+- **no motion** (label 1): the texts with intent ``none`` of ``assets/semantics/train/v3/train.jsonl`` (two blind
+  writers' nine kinds) and ``assets/semantics/train/w3/train.jsonl`` (a third blind writer's, the same kinds);
   never their ``bench.jsonl``, which only ``python -m experiments.bench_semantics`` reads;
 - **no motion, detector only** (label 1): the texts with intent ``none`` of
-  ``assets/semantics_nomotion_train/*/train.jsonl`` (more blind writers, the same nine kinds),
+  ``assets/semantics/train/nomotion_detector/*/train.jsonl`` (more blind writers, the same nine kinds),
   which the head is not trained on (:data:`DETECTOR_ONLY`); their contrast texts are motion texts as below;
 - **motion** (label 0): those files' contrast texts ("don't X; just Y": they choose a motion), the situation-only
-  and mixed texts of ``assets/semantics_eval_s3/train.jsonl`` (a fourth blind writer's; each style its own source)
-  and every motion text of ``assets/semantics_train/*.jsonl``, the head's own training corpora (their ``none``
+  and mixed texts of ``assets/semantics/train/s3/train.jsonl`` (a fourth blind writer's; each style its own source)
+  and every motion text of ``assets/semantics/train/corpora/*.jsonl``, the head's own training corpora (their ``none``
   rows are not used).
 
 Features: the shipped head's sentence vector (the tuned encoder's whole-text pooling, computed by the same
@@ -43,15 +43,15 @@ from pathlib import Path
 import numpy as np
 
 from jgrounding.semantics import nomotion, structure
+from tools import semantic_sets
 from tools.semantics_corpus import normalized
-from tools.train_semantics import BLIND_TRAIN, UNSHIPPED_TRAIN  # the blind writers' training splits
+from tools.semantics_data import BLIND_TRAIN, TRAIN_DIR, UNSHIPPED_TRAIN  # the corpora, the blind writers' splits
 
 # The blind writers' files the detector reads, in order: the head's (BLIND_TRAIN) and two writers' situations that the
 # shipped head is not trained on (UNSHIPPED_TRAIN: motion texts here).
 DETECTOR_BLIND = BLIND_TRAIN + UNSHIPPED_TRAIN
 
 ROOT = Path(__file__).resolve().parent.parent
-TRAIN_DIR = ROOT / "assets" / "semantics_train"
 HIDDEN = 64
 WEIGHT_DECAY = 0.1
 LEARNING_RATE = 3e-3
@@ -73,9 +73,8 @@ NO_MOTION = "blind no motion"
 EXTRA_NO_MOTION = "detector-only no motion"  # the no-motion texts of DETECTOR_ONLY (a source of their own)
 # Blind writers' no-motion and contrast texts that only the detector learns from (the head is not trained on them, so
 # tools.train_semantics still rebuilds the shipped head): one folder per writer, its raw files converted by
-# assets/semantics_nomotion_train/convert.py.
-DETECTOR_ONLY_DIR = ROOT / "assets" / "semantics_nomotion_train"
-DETECTOR_ONLY = tuple(sorted(DETECTOR_ONLY_DIR.glob("*/train.jsonl")))
+# assets/semantics/train/nomotion_detector/convert.py.
+DETECTOR_ONLY = semantic_sets.files("train/nomotion_detector")
 
 
 def max_false_hold(source: str) -> float:

@@ -7,7 +7,7 @@ variants split 2 + 2, the others with one; intensity levels interpolate a varian
 Its wrong-intent and far-intensity brackets do not hold (results/library_v3/).
 
 **Library v4** (``--version 4``): a code of nearly binary key poses
-(:mod:`jgrounding.library.signatures_v4`, designed by ``python -m tools.design_library``) chosen per
+(``code_v4.json`` of :mod:`jgrounding.library.code_words`, designed by ``python -m tools.design_library``) chosen per
 (intent, variant, intensity) so that every two intents at one intensity, the variants of one intent and its
 levels two or more apart are far apart in RMS, while every intent keeps its kinematic signature
 (:data:`jgrounding.library.screening.RULES`, the same rules as v3) and its tip moves farther and faster from
@@ -23,8 +23,8 @@ subtle to emphatic. Every realization still starts at rest (key pose 0) and the 
 So a split tuple's held-out variant has fewer training realizations than another variant in 2 of 3 split
 tuples (16 of 24), not in all of them, and the tuple mean lies far from every variant.
 
-**Library v5** (``--version 5``, the default; :mod:`jgrounding.library.signatures_v5`, ``python -m tools.design_library
---version 5``): v4's code with curiosity and beckoning given two variants again (probing from the left or the
+**Library v5** (``--version 5``, the default; ``code_v5.json`` of :mod:`jgrounding.library.code_words`,
+``python -m tools.design_library --version 5``): v4's code with curiosity and beckoning given two variants again (probing from the left or the
 right; the tip curling in from either side), so 32 of the 64 tuples are split (24 two-variant, 8 three-variant).
 Why: the tuple mean passes the one-sample replay test of a split tuple only where the training mean lies within
 tau of the held-out realization; a 1 + 1 + 1 training split puts the mean at ~0.58 of the variants' spacing from
@@ -39,7 +39,7 @@ import dataclasses
 
 import numpy as np
 
-from jgrounding.library import primitives
+from jgrounding.library import code_words, primitives
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
 DEFAULT_VERSION = 5
@@ -99,11 +99,9 @@ def _v3() -> Design:
 
 
 def _coded(version: int) -> Design:
-    import importlib
-
-    s = importlib.import_module(f"jgrounding.library.signatures_v{version}")
-    num = np.array([s.NUM_VARIANTS[m] for m in INTENTS])
-    return Design(version, LIBRARY_VERSIONS[version], np.array(s.CODE, dtype=np.float64), num, VARIATION_V4)
+    words = code_words.load(version)
+    num = np.array([words.num_variants[m] for m in INTENTS])
+    return Design(version, LIBRARY_VERSIONS[version], np.array(words.code), num, VARIATION_V4)
 
 
 # v4's repetitions vary as v3's do (mean pairwise RMS within a variant 0.058 on the shipped library; more onset and

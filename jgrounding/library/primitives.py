@@ -37,7 +37,7 @@ import numpy as np
 
 from jgrounding.actuation import splines
 from jgrounding.config import NUM_STEPS  # noqa: E402  (T of Table I)
-from jgrounding.library.signatures import CODE as _CODE
+from jgrounding.library import code_words
 from jgrounding.vocabulary import INTENTS, NUM_INTENSITIES
 
 REST = 0.0  # the rest command: every tendon slack (jgrounding.safety.REST)
@@ -143,7 +143,7 @@ def design_anchors() -> np.ndarray:
     return out
 
 
-CODE = np.array(_CODE, dtype=np.float64)  # (16, 2, 2, 4, 4), refined design_anchors()
+CODE = code_words.load(3).code  # (16, 2, 2, 4, 4), refined design_anchors() (jgrounding/assets/designs/code_v3.json)
 
 
 def key_poses(intent: int, variant: int, intensity: int) -> np.ndarray:

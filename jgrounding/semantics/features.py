@@ -6,7 +6,7 @@
 
 - ``embedding``: the frozen sentence embedding (384);
 - ``eq3``: the embedding and the cue-list reducer's evidence (:func:`jgrounding.semantics.cue_reducer.cue_features`:
-  Eq. (3) intent scores and degree cues), the inputs of the first trained head (``assets/semantic_head_v1.npz``);
+  Eq. (3) intent scores and degree cues), the inputs of the first trained head (``assets/semantics/bench/head_v1/semantic_head_v1.npz``);
 - ``structure``: the frozen encoder pooled four ways (the sentence, its chosen part, its rejected part, the quoted
   words; :mod:`jgrounding.semantics.structure`), the chosen part's Eq. (3) evidence, the rejected part's intent
   scores and the structure flags (:func:`structure_features`);

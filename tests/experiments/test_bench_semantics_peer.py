@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from experiments import bench_semantics as bench
+from experiments import bench_semantics_peer as bench
 from jgrounding.semantics import encoder
 
 

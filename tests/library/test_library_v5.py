@@ -148,9 +148,12 @@ def test_earlier_libraries_are_still_reproducible_byte_for_byte(tmp_path, versio
 def test_the_v5_code_is_what_the_design_tool_produces():
     """``python -m tools.design_library --version 5 --check``: word pools simulated afresh, v4's stored code as the
     warm start, one annealing stage (~2.5 min on 2 cores)."""
-    from jgrounding.library import signatures_v5
+    from jgrounding.library import code_words
     from tools import design_library
 
     code = design_library.design(5, progress=False)
-    np.testing.assert_allclose(np.array(signatures_v5.CODE), code, atol=0.005)
-    assert signatures_v5.NUM_VARIANTS == design_library.NUM_VARIANTS_V5
+    stored = code_words.load(5)
+    np.testing.assert_allclose(stored.code, code, atol=0.005)
+    assert stored.num_variants == design_library.NUM_VARIANTS_V5
+    # the tool's --write would write the stored file byte for byte
+    assert code_words.render(5, code, design_library.NUM_VARIANTS_V5) == code_words.path(5).read_text()

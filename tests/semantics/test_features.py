@@ -2,7 +2,6 @@
 (jgrounding.semantics.cues) and the intent conditioning (jgrounding.semantics.conditioning)."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,8 +9,9 @@ import pytest
 from jgrounding.semantics import conditioning, cues, encoder, features, structure
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS, NUM_INTENTS
+from tools import semantic_sets
 
-OLD_HEAD = Path(__file__).resolve().parents[2] / "assets" / "semantic_head_v1.npz"
+OLD_HEAD = semantic_sets.path("bench/head_v1")
 TEXTS = ["Rather than a big hug, just give a small wave.", "WAVE HELLO NOW!!"]
 
 

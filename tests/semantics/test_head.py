@@ -10,6 +10,7 @@ import pytest
 import jgrounding as jg
 from jgrounding.semantics import calibration, features
 from jgrounding.semantics import head as sh
+from tools import semantics_calibration
 
 
 def test_ordinal_probabilities_are_a_distribution_with_ordered_cuts():
@@ -105,7 +106,6 @@ def test_cut_points_set_on_a_head_are_the_ones_it_reads():
 
 
 def test_cut_points_fitted_on_dev_move_toward_the_labels():
-    from tools import train_semantics as ts
 
     params = sh.init(jax.random.key(0), sh.HeadConfig(hidden=0, inputs="embedding"))
     x = jax.random.normal(jax.random.key(2), (400, features.EMBED_DIM))
@@ -117,6 +117,8 @@ def test_cut_points_fitted_on_dev_move_toward_the_labels():
     z = np.array([rng.choice(4, p=row / row.sum()) for row in p])
     rows = [{"intent": "nodding", "intensity": jg.INTENSITIES[k]} for k in z]
     rows.append({"intent": "none", "intensity": None})  # no-behaviour rows carry no intensity: skipped
-    cuts, shift = ts.fit_cut_points(params, np.concatenate([np.asarray(x), np.zeros((1, features.EMBED_DIM))]), rows)
+    cuts, shift = semantics_calibration.fit_cut_points(
+        params, np.concatenate([np.asarray(x), np.zeros((1, features.EMBED_DIM))]), rows
+    )
     assert np.all(shift > 0) and np.all(np.abs(shift - 0.75) <= 0.5)
     np.testing.assert_allclose(cuts, theta + shift)

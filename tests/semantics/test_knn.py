@@ -9,9 +9,9 @@ import pytest
 from jgrounding.semantics import embedded, features
 from jgrounding.semantics import head as sh
 from jgrounding.vocabulary import INTENTS
-from tools import semantics_knn, train_semantics
+from tools import semantic_sets, semantics_data, semantics_knn, semantics_vote, train_semantics
 
-SITUATIONS = "assets/semantics_train/situations.jsonl"  # the rows of conftest's head_with_vote table
+SITUATIONS = semantic_sets.path("train/corpora", "situations.jsonl")  # the rows of conftest's head_with_vote table
 
 NAMES_AN_ACTION = [
     "Nod.",
@@ -38,11 +38,11 @@ def test_a_shipped_table_is_the_shipped_heads_and_passed_its_rule(head):
 
 
 def test_the_table_rows_hold_the_vote_only_rows_that_the_head_never_trained_on():
-    # The table's rows: the training corpora, then the vote-only situations (assets/semantics_vote/), in
+    # The table's rows: the training corpora, then the vote-only situations (assets/semantics/train/vote/), in
     # tools.semantics_knn.table_rows' order. The head's trainer must not read the vote-only rows.
     # The blind writers' training splits follow (the head trains on them; only the "+blind" table holds them).
     rows, files = semantics_knn.table_rows()
-    vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS.glob("*.jsonl")])
+    vote_only = np.isin(files, [p.name for p in semantics_knn.VOTE_ROWS])
     blind = np.char.startswith(files.astype(str), "blind/")
     assert vote_only.sum() == 1024 and (files != "generated.jsonl")[vote_only].all()
     corpora, _ = train_semantics.load_train(blind=())
@@ -98,7 +98,7 @@ def test_the_vote_moves_a_situation_toward_its_neighbours_intent(head_with_vote)
     # neighbours: the blend moves the one the head is least sure of toward the intent it is labelled.
     rows = [json.loads(line) for line in open(SITUATIONS).read().splitlines()[:64]]
     texts = [r["text"] for r in rows]
-    voted = semantics_knn.no_motion_words(features.head_inputs(head_with_vote, texts))
+    voted = semantics_vote.no_motion_words(features.head_inputs(head_with_vote, texts))
     assert voted.sum() >= 8
     alone = dataclasses.replace(head_with_vote, knn=None)
     p_alone = embedded.predict_tuned_many(alone, texts)[0]
@@ -142,7 +142,7 @@ def test_shipped_blend_equals_the_dev_comparison():
     pz = np.full((5, 4), 0.25, np.float32)
     got, got_z = (np.asarray(a) for a in sh.knn_blend(knn, p, pz, q, extras, 7))
     np.testing.assert_array_equal(got_z, pz)  # no intensity vote in this table
-    want = 0.6 * p + 0.4 * semantics_knn.knn_vote(q, table, labels, 7, 0.05)
+    want = 0.6 * p + 0.4 * semantics_vote.knn_vote(q, table, labels, 7, 0.05)
     want[1] = p[1]
     np.testing.assert_allclose(got, want, atol=1e-5)
 
@@ -187,13 +187,13 @@ def test_shipped_blend_applies_the_fitted_temperature_to_every_text():
     knn |= dict(tau=np.float32(0.05), a=np.float32(0.7), temperature=np.float32(0.6))
     pz = np.full((4, 4), 0.25, np.float32)
     got = np.asarray(sh.knn_blend(knn, p, pz, q, extras, 5)[0])
-    blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
+    blend = 0.3 * p + 0.7 * semantics_vote.knn_vote(q, table, labels, 5, 0.05)
     blend[2] = p[2]
-    np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
+    np.testing.assert_allclose(got, semantics_vote.sharpen(blend, 0.6), atol=1e-5)
     knn["gate"] = np.zeros(2, np.float32)  # an empty gate: every text votes
     got = np.asarray(sh.knn_blend(knn, p, pz, q, extras, 5)[0])
-    blend = 0.3 * p + 0.7 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
-    np.testing.assert_allclose(got, semantics_knn.sharpen(blend, 0.6), atol=1e-5)
+    blend = 0.3 * p + 0.7 * semantics_vote.knn_vote(q, table, labels, 5, 0.05)
+    np.testing.assert_allclose(got, semantics_vote.sharpen(blend, 0.6), atol=1e-5)
 
 
 def test_a_situation_temperature_sharpens_only_the_texts_the_gate_lets_through(tmp_path):
@@ -207,8 +207,8 @@ def test_a_situation_temperature_sharpens_only_the_texts_the_gate_lets_through(t
     knn |= dict(tau=np.float32(0.05), a=np.float32(0.5), situation_temperature=np.float32(0.7))
     pz = np.full((5, 4), 0.25, np.float32)
     got = np.asarray(sh.knn_blend(knn, p, pz, q, extras, 5)[0])
-    blend = 0.5 * p + 0.5 * semantics_knn.knn_vote(q, table, labels, 5, 0.05)
-    want = semantics_knn.sharpen(blend, 0.7)
+    blend = 0.5 * p + 0.5 * semantics_vote.knn_vote(q, table, labels, 5, 0.05)
+    want = semantics_vote.sharpen(blend, 0.7)
     want[3] = p[3]
     np.testing.assert_allclose(got, want, atol=1e-5)
     meta = dict(k=5, tau=0.05, a=0.5, head_digest="x")
@@ -234,50 +234,50 @@ def test_the_situation_temperature_is_fitted_on_the_gated_hold_out_texts_only():
     rows = [
         dict(text=f"t{i}", intent=INTENTS[c], intensity="moderate", style="situation") for i, c in enumerate(intents)
     ]
-    t = semantics_knn.fit_situation_temperature(pm, gated, rows)
+    t = semantics_vote.fit_situation_temperature(pm, gated, rows)
     assert t < 1.0
-    assert semantics_knn.fit_situation_temperature(pm, np.ones(60, bool), rows) > t
+    assert semantics_vote.fit_situation_temperature(pm, np.ones(60, bool), rows) > t
 
 
 def test_a_tighter_confident_wrong_budget_never_lowers_the_threshold_nor_adds_wrong_motions():
     rng = np.random.default_rng(0)
     rows = [{"intent": INTENTS[i % 16], "intensity": "moderate", "style": "situation"} for i in range(200)]
     rows += [{"intent": "none", "intensity": None, "style": "none"} for _ in range(40)]
-    intent, _ = train_semantics.labels(rows)
+    intent, _ = semantics_data.labels(rows)
     logits = rng.normal(0, 1, (len(rows), sh.NUM_CLASSES))
     logits[np.arange(len(rows)), intent] += rng.uniform(0, 4, len(rows))  # mostly right, some confidently wrong
     pm = np.exp(logits) / np.exp(logits).sum(1, keepdims=True)
     pz = np.full((len(rows), 4), 0.25)
-    r = semantics_knn.evaluate(pm, pz, rows, pm, pz, rows, False, budgets=semantics_knn.BUDGETS)
-    b = [r["budgets"][t] for t in semantics_knn.BUDGETS]  # loosest first
+    r = semantics_vote.evaluate(pm, pz, rows, pm, pz, rows, False, budgets=semantics_vote.BUDGETS)
+    b = [r["budgets"][t] for t in semantics_vote.BUDGETS]  # loosest first
     assert r["budgets"][train_semantics.TARGET_WRONG]["threshold"] == r["threshold"]
     assert [x["threshold"] for x in b] == sorted(x["threshold"] for x in b)
     assert [x["dev"]["confident_wrong"] for x in b] == sorted((x["dev"]["confident_wrong"] for x in b), reverse=True)
     for target, x in r["budgets"].items():
         assert x["dev"]["confident_wrong"] <= target or x["threshold"] == 0.975
-    assert "budget 0.010: thr" in semantics_knn.budget_line(r)
+    assert "budget 0.010: thr" in semantics_vote.budget_line(r)
 
 
 def test_the_vote_written_is_the_best_dev_score_that_passes_the_rule_the_earlier_on_a_tie():
-    assert semantics_knn.best_passing([0.92, 0.93, 0.95], [True, True, False]) == 1
-    assert semantics_knn.best_passing([0.927, 0.927, 0.93], [True, True, False]) == 0  # a tie: the earlier
-    assert semantics_knn.best_passing([0.9, 0.9], [False, False]) is None
+    assert semantics_vote.best_passing([0.92, 0.93, 0.95], [True, True, False]) == 1
+    assert semantics_vote.best_passing([0.927, 0.927, 0.93], [True, True, False]) == 0  # a tie: the earlier
+    assert semantics_vote.best_passing([0.9, 0.9], [False, False]) is None
     assert [c["b"] for c in semantics_knn.CHOICES] == [0.0, 0.5, 0.0, 0.5]  # each table without, then with
 
 
 def test_a_votes_threshold_adds_no_confident_wrong_over_the_heads_on_dev():
     """vote_target: a vote's dev budget is the head's own confident-wrong rate where that is below TARGET_WRONG, so the
     threshold evaluate() fits for it meets the ship rule's 'no more confident wrongs' instead of failing it."""
-    assert semantics_knn.vote_target({"dev": {"confident_wrong": 0.006}}) == 0.006
-    assert semantics_knn.vote_target({"dev": {"confident_wrong": 0.05}}) == train_semantics.TARGET_WRONG
+    assert semantics_vote.vote_target({"dev": {"confident_wrong": 0.006}}) == 0.006
+    assert semantics_vote.vote_target({"dev": {"confident_wrong": 0.05}}) == train_semantics.TARGET_WRONG
     rng = np.random.default_rng(1)
     rows = [{"intent": INTENTS[i % 16], "intensity": "moderate", "style": "situation"} for i in range(200)]
-    intent, _ = train_semantics.labels(rows)
+    intent, _ = semantics_data.labels(rows)
     logits = rng.normal(0, 1, (len(rows), sh.NUM_CLASSES))
     logits[np.arange(len(rows)), intent] += rng.uniform(0, 4, len(rows))
     pm = np.exp(logits) / np.exp(logits).sum(1, keepdims=True)
     pz = np.full((len(rows), 4), 0.25)
-    loose = semantics_knn.evaluate(pm, pz, rows, pm, pz, rows, False)
-    tight = semantics_knn.evaluate(pm, pz, rows, pm, pz, rows, False, target=0.005)
+    loose = semantics_vote.evaluate(pm, pz, rows, pm, pz, rows, False)
+    tight = semantics_vote.evaluate(pm, pz, rows, pm, pz, rows, False, target=0.005)
     assert tight["dev"]["confident_wrong"] <= 0.005 < loose["dev"]["confident_wrong"]
     assert tight["threshold"] > loose["threshold"]

@@ -12,6 +12,7 @@ import jgrounding as jg
 from jgrounding import semantics
 from jgrounding.semantics import cue_reducer, encoder, features, structure
 from jgrounding.semantics import head as sh
+from tools import semantics_calibration
 
 
 def _flags(text):
@@ -158,7 +159,7 @@ def test_training_is_deterministic_and_calibration_meets_its_target(tmp_path):
     p2, _ = ts.fit(x, rows, np.ones(len(rows)), reasons=reasons, **opt)
     assert sh.digest(p1) == sh.digest(p2) and cfg.num_reasons == 2
     pm, pz = (np.asarray(a) for a in sh.predict(p1, x, 1.0))
-    t = ts.calibrate_threshold(pm, pz, rows, target=0.05)
+    t = semantics_calibration.calibrate_threshold(pm, pz, rows, target=0.05)
     assert ts.selective(pm, pz, rows, t)["confident_wrong"] <= 0.05
     path = sh.save(tmp_path / "head.npz", p1, cfg, {"temperature": 1.0, "threshold": t})
     with np.load(path) as f:
@@ -181,13 +182,19 @@ def test_the_threshold_keeps_the_situations_confident_wrongs_within_the_budget_t
     pm, pz = probs([True] * 50, 0.6)  # dev: every text right at 0.6
     sit_rows = [{"text": "s", "intent": jg.INTENTS[0], "intensity": "subtle"}] * 20
     spm, spz = probs([True] * 18 + [False] * 2, 0.7)  # situations: 10 % wrong at 0.7
-    assert ts.calibrate_threshold(pm, pz, dev) == 0.1
-    t = ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows))
+    assert semantics_calibration.calibrate_threshold(pm, pz, dev) == 0.1
+    t = semantics_calibration.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows))
     assert t == 0.725 and ts.selective(spm, spz, sit_rows, t)["confident_wrong"] == 0
     # the situations' budget is its own (ts.SITUATION_TARGET_WRONG): 1 wrong of 20 (5 %) passes a 5 % one
     spm[19] = spm[0]  # the second wrong situation is now right: 1 of 20 wrong at 0.7
-    assert ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows), situation_target=0.05) == 0.1
-    assert ts.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows), situation_target=0.01) == 0.725
+    assert (
+        semantics_calibration.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows), situation_target=0.05)
+        == 0.1
+    )
+    assert (
+        semantics_calibration.calibrate_threshold(pm, pz, dev, situations=(spm, spz, sit_rows), situation_target=0.01)
+        == 0.725
+    )
 
 
 def test_semantics_module_exports_ground_many():
@@ -253,8 +260,14 @@ def test_ship_rule_takes_the_fewest_layers_within_the_margin():
         sh.HeadConfig(inputs="tuned", tuned_layers=3),
         sh.HeadConfig(inputs="tuned", tuned_layers=3, encoder_layers=(1, 3, 5)),
     )
-    assert ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - ts.SHIP_MARGIN / 2, three)}) == "student"
-    assert ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - 2 * ts.SHIP_MARGIN, three)}) == "tuned"
+    assert (
+        ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - semantics_calibration.SHIP_MARGIN / 2, three)})
+        == "student"
+    )
+    assert (
+        ts.ship_choice({"tuned": (0.90, six), "student": (0.90 - 2 * semantics_calibration.SHIP_MARGIN, three)})
+        == "tuned"
+    )
     assert ts.ship_choice({"eq3": (0.80, six), "tuned": (0.90, six)}) == "tuned"
 
 
@@ -262,14 +275,15 @@ def test_the_ship_score_counts_the_situation_hold_out_as_one_more_term():
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-    from tools import train_semantics as ts
 
     r = dict(intent_motion=0.9, intensity_exact=0.8, coverage_motion=0.9, none_held=0.9)
     plain = dict(intent_motion=1.0)
-    assert ts.dev_score(r, plain) == pytest.approx(0.9)
-    assert ts.dev_score(r, plain, dict(intent_motion=0.6)) == pytest.approx(0.85)
+    assert semantics_calibration.dev_score(r, plain) == pytest.approx(0.9)
+    assert semantics_calibration.dev_score(r, plain, dict(intent_motion=0.6)) == pytest.approx(0.85)
     # a better situation reader outranks a worse one with the same dev figures
-    assert ts.dev_score(r, plain, dict(intent_motion=0.8)) > ts.dev_score(r, plain, dict(intent_motion=0.6))
+    assert semantics_calibration.dev_score(r, plain, dict(intent_motion=0.8)) > semantics_calibration.dev_score(
+        r, plain, dict(intent_motion=0.6)
+    )
 
 
 def test_a_default_training_run_compares_the_options_of_the_shipped_heads_run():

@@ -7,7 +7,7 @@ import pytest
 
 from experiments import bench_semantics
 from jgrounding.vocabulary import INTENSITIES, INTENTS
-from tools import semantics_system_dev, train_semantics
+from tools import semantic_sets, semantics_data, semantics_system_dev, train_semantics
 from tools.semantics_corpus import EVAL_SPLITS
 from tools.semantics_corpus import normalized as _norm
 from tools.train_semantics import read_jsonl as _rows
@@ -26,10 +26,11 @@ def _evaluated() -> dict[str, Path]:
     parked for a later change's judgement), the dev and test splits (the ones the corpus generator keeps its lines
     out of) and the blind situation hold-outs of the ship rule and the calibration."""
     files = dict(bench_semantics.BENCH_V3)
-    for folder in sorted(train_semantics.ROOT.glob("assets/semantics_eval_*")):
+    for s in semantic_sets.select(role="bench"):
         # a set parked for a later change has no bench.jsonl yet: its writer's raw files are all frozen
+        folder = s.folder
         frozen = [folder / "bench.jsonl"] if (folder / "bench.jsonl").exists() else sorted(folder.glob("*_raw.jsonl"))
-        files |= {f"{folder.name}/{path.name}": path for path in frozen}
+        files |= {f"{s.name}/{path.name}": path for path in frozen}
     files |= {f"{path.parent.name}/{path.name}": path for path in EVAL_SPLITS}
     files |= {f"situation dev {path.name}": path for path in train_semantics.SITUATION_DEVS}
     # the whole system's dev sets (tools.semantics_system_dev: the unfitted hold-outs and the no-motion dev set too)
@@ -37,7 +38,7 @@ def _evaluated() -> dict[str, Path]:
     return files
 
 
-BLIND_FILES = train_semantics.BLIND_TRAIN + train_semantics.UNSHIPPED_TRAIN  # what the head and the detector read
+BLIND_FILES = train_semantics.BLIND_TRAIN + semantics_data.UNSHIPPED_TRAIN  # what the head and the detector read
 
 
 @pytest.mark.parametrize("path", BLIND_FILES, ids=lambda p: f"{p.parent.name}/{p.name}")
@@ -54,7 +55,8 @@ def test_each_blind_training_file_is_well_formed(path):
 
 @pytest.mark.parametrize(
     "path",
-    sorted(train_semantics.BLIND_TRAIN_DIR.glob("situations_*.jsonl")),  # those read and those not (s24, s25)
+    # every situation writer's training file, those read and those not (s24, s25)
+    [p for s in semantic_sets.select(role="train") for p in s.files if re.fullmatch(r"situations_s\d+\.jsonl", p.name)],
     ids=lambda p: p.name,
 )
 def test_the_situation_writers_files_follow_their_brief(path):
@@ -76,7 +78,7 @@ def test_no_training_text_is_one_the_project_evaluates_on():
     with the frozen benches, the dev and test splits or the ship rule's situation hold-out."""
     train = {}
     files = {name: path for name, (path, _) in train_semantics.train_files().items()}
-    files |= {f"{p.parent.name}/{p.name}": p for p in train_semantics.UNSHIPPED_TRAIN}  # the detector reads them
+    files |= {f"{p.parent.name}/{p.name}": p for p in semantics_data.UNSHIPPED_TRAIN}  # the detector reads them
     for name, path in files.items():
         for r in _rows(path):
             train.setdefault(_norm(r["text"]), name)
@@ -100,7 +102,7 @@ def test_the_second_reader_labelled_every_hold_out_text_and_agreement_counts_by_
 
 
 def test_the_detector_only_texts_are_well_formed_unseen_by_the_head_and_never_evaluated_on():
-    """assets/semantics_nomotion_train/*/train.jsonl (tools.train_nomotion.DETECTOR_ONLY): the converted raw files
+    """assets/semantics/train/nomotion_detector/*/train.jsonl (tools.train_nomotion.DETECTOR_ONLY): the converted raw files
     of their writers (nine no-motion kinds and contrast texts), read by the detector's trainer only, sharing no text
     with any evaluated file; a text that a file the head trains on holds too (w8 wrote a log line w4 wrote) is
     left out of the detector's rows, so no text is learned twice."""
