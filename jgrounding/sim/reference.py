@@ -43,6 +43,15 @@ SETTLE_S = 1.5  # s of heavily damped settling under gravity before a recording 
 SETTLE_DAMPING = 30.0  # 1/s during the settling (the first bending mode overdamped)
 
 
+def time_step(n_elements: int, params=None) -> tuple[float, int]:
+    """(time step, steps per recorded sample): the largest step within :data:`CFL` x element length / the axial
+    wave speed sqrt(E / density) that divides 1 / :data:`RECORD_HZ`."""
+    p = params or PARAMETERS
+    limit = CFL * (p.length / n_elements) / math.sqrt(p.youngs_modulus / p.density)
+    substeps = math.ceil((1.0 / RECORD_HZ) / limit)
+    return (1.0 / RECORD_HZ) / substeps, substeps
+
+
 @dataclasses.dataclass(frozen=True)
 class RodParameters:
     """The reference's physical parameters (SI units); :data:`SOURCES` gives each one's source."""
@@ -172,9 +181,7 @@ class Rod:
         ds = p.length / n_elements
         self.s_nodes = np.arange(n_elements + 1) * ds
         s_el = (np.arange(n_elements) + 0.5) * ds
-        wave = math.sqrt(p.youngs_modulus / p.density)
-        self.substeps = math.ceil((1.0 / RECORD_HZ) / (CFL * ds / wave))
-        self.dt = (1.0 / RECORD_HZ) / self.substeps
+        self.dt, self.substeps = time_step(n_elements, p)
 
         class _Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
             pass
