@@ -143,7 +143,7 @@ def load_recordings(folder, *, limits=None) -> list[Recording]:
             continue
         if mmap is None:
             continue
-        pos, _, bad = markers.read_markers(folder / row.file, mmap, rec.time, rec.lines)
+        pos, _, bad = markers.read_markers(folder / row.file, mmap, rec.time, rec.lines, exclude)
         problems += [p.with_fix(leave_out) for p in bad]
         if bad or row.entry is None:
             continue

@@ -169,3 +169,16 @@ def test_a_folder_without_markers_is_not_a_calibration_recording(tmp_path, folde
     (path / "manifest.json").write_text(json.dumps(doc))
     [p] = _problems(path)
     assert "no motion-capture markers declared" in p.reason and p.column == "markers"
+
+
+def test_a_broken_marker_map_does_not_hide_the_files_faults(folder):
+    path, _ = folder
+    doc = json.loads((path / "manifest.json").read_text())
+    doc["markers"][0]["units"] = "m"  # the mid marker is refused; the tip is still checked in every file
+    (path / "manifest.json").write_text(json.dumps(doc))
+    _set_cells(path / "nodding_2.csv", range(50, 60), ["tip_y"])
+    found = _problems(path)
+    assert [(p.file.rsplit("/", 1)[-1], p.column) for p in found] == [
+        ("manifest.json", "markers[0].units"),
+        ("nodding_2.csv", "tip_y"),
+    ]

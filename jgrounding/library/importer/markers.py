@@ -151,7 +151,9 @@ def _one_marker(k: int, m, units: str, manifest, seen_names: set, seen_cols: set
 
 
 def marker_map(fields: dict, manifest) -> tuple[MarkerMap | None, list[DemonstrationError]]:
-    """(the manifest's marker map, or None when it declares no markers; every problem of the map)."""
+    """(the manifest's marker map, or None when it declares no markers; every problem of the map). A map with
+    problems still comes back with its valid markers (None when none is valid or the unit is unknown), so that
+    the recordings' marker columns are checked in the same run."""
     if "markers" not in fields:
         extra = [k for k in MARKER_FIELDS if k in fields]
         if extra:
@@ -181,10 +183,12 @@ def marker_map(fields: dict, manifest) -> tuple[MarkerMap | None, list[Demonstra
     for k, m in enumerate(markers):
         marker, bad = _one_marker(k, m, units, manifest, names, cols)
         problems += bad
-        found.append(marker)
-    if problems:
+        if marker is not None:
+            found.append(marker)
+    if not found or units not in MARKER_UNITS:
         return None, problems
-    return MarkerMap(tuple(found), units, float(gap)), []
+    gap = float(gap) if not any(p.column == "max_marker_gap_s" for p in problems) else MAX_MARKER_GAP_S
+    return MarkerMap(tuple(found), units, gap), problems
 
 
 def declared_columns(fields: dict) -> tuple[str, ...]:
@@ -219,10 +223,13 @@ def _fill(x: np.ndarray, time: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.interp(time, time[valid], x[valid])
 
 
-def read_markers(path, mmap: MarkerMap, time: np.ndarray, lines) -> tuple[np.ndarray | None, list[str], list]:
+def read_markers(
+    path, mmap: MarkerMap, time: np.ndarray, lines, declared=()
+) -> tuple[np.ndarray | None, list[str], list]:
     """(positions ``(n, M, 3)`` in metres with short gaps filled, or None; notes; problems) of the marker
     columns of one recording whose time and tendon columns were read (``time`` in seconds and ``lines``, the
-    file line of each of its rows)."""
+    file line of each of its rows); ``declared``: every column the manifest's map names (also those of its
+    markers with problems), never an unmapped marker."""
     table = parse.read_cells(path)
     header = table.header
     index = {h.lower(): k for k, h in enumerate(header)}
@@ -238,7 +245,7 @@ def read_markers(path, mmap: MarkerMap, time: np.ndarray, lines) -> tuple[np.nda
                 fix="correct the manifest's 'markers' map to the file's column names, or add the columns",
             )
         )
-    mapped = {c.lower() for c in mmap.columns}
+    mapped = {c.lower() for c in mmap.columns + tuple(declared)}
     stray = [(n, x) for n, x in _triplets(header) if x.lower() not in mapped]
     if stray:
         problems.append(

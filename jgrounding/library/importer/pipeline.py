@@ -130,7 +130,7 @@ def _read_all(
             problems.extend(p.with_fix(leave_out) for p in problems_of(err))
             continue
         if mmap is not None:
-            _, notes, bad = markers.read_markers(folder / row.file, mmap, rec.time, rec.lines)
+            _, notes, bad = markers.read_markers(folder / row.file, mmap, rec.time, rec.lines, exclude)
             problems.extend(p.with_fix(leave_out) for p in bad)
             if bad:
                 continue
