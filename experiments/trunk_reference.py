@@ -13,7 +13,7 @@ It drives the rod with the built-in library's commands and records what a lab's 
   time per trajectory) and ``backbone.npz`` (the rod's backbone per control step); a later run with the
   same provenance reuses them (``--force`` regenerates, ``--verify`` checks the hashes). The full set is
   about 30 MB, so the repository ships a 16-recording example instead, ``assets/trunk_reference/example``
-  (one training recording per intent), with its own hash file.
+  (two training recordings of one tuple for every other intent), with its own hash file.
 - Then it measures, and writes ``results/trunk_reference.md``: each intent's kinematic signatures on the
   rod's motion for the 256 demonstrations (beside the MuJoCo trunk's), and the backbone / tip RMS of the
   hand-tuned MuJoCo trunk against the rod on the same commands.
@@ -209,7 +209,7 @@ def generate(out: Path, *, n_elements: int, eval_per_tuple: int, workers: int, q
     old = out / "provenance.json"
     if not force and old.is_file() and not verify(out):
         stored = json.loads(old.read_text())
-        if stored == prov:
+        if stored == json.loads(json.dumps(prov)):  # as stored: tuples are lists
             print(f"{out}: recordings already there (hashes match); --force regenerates them")
             timing = out / TIMING_FILE
             return jobs, None, {**stored, "timing": json.loads(timing.read_text()) if timing.is_file() else {}}
@@ -252,16 +252,17 @@ def generate(out: Path, *, n_elements: int, eval_per_tuple: int, workers: int, q
 
 
 def write_example(out: Path, jobs) -> Path:
-    """The shipped example: one training recording per intent (intensities in turn), copied from ``out/train``."""
+    """The shipped example: two training recordings of one tuple for every other intent (intensities in turn), 16
+    in all, copied from ``out/train``: varied enough to calibrate on, and a library import's split works on it."""
     from jgrounding.sim.recordings import load_recordings, write_recordings
-    from jgrounding.vocabulary import INTENTS
+    from jgrounding.vocabulary import INTENSITIES, INTENTS
 
     recs = {r.name: r for r in load_recordings(out / "train")}
     pick = []
-    for k, name in enumerate(INTENTS):
-        own = [j for j in jobs if j.split == "train" and j.intent == name]
-        if own:
-            pick.append(recs[own[k % len(own)].name])
+    for k, name in enumerate(INTENTS[::2]):
+        level = INTENSITIES[k % len(INTENSITIES)]
+        own = [j for j in jobs if j.split == "train" and (j.intent, j.intensity) == (name, level)]
+        pick += [recs[j.name] for j in own[:2]]
     source = {"source": "the physical reference (python -m experiments.trunk_reference); full set in runs/"}
     write_recordings(EXAMPLE, pick, extra=source)
     write_hashes(EXAMPLE)

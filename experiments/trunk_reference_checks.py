@@ -140,9 +140,25 @@ def _groups(f: dict, m: np.ndarray, z: np.ndarray) -> list[tuple[str, str, bool]
     return out
 
 
+FEATURES = {  # the features each intent's per-realization signatures read
+    "greeting": ("rise", "lateral_reversals"),
+    "withdrawal": ("final_retreat", "reach_toward_user"),
+    "nodding": ("sagittal_excursion", "lateral_excursion", "vertical_reversals"),
+    "refusing": ("lateral_excursion", "sagittal_excursion"),
+    "comforting": ("min_user_distance",),
+    "embracing": ("min_user_distance",),
+    "offering": ("min_user_distance",),
+    "coiling": ("reach_toward_user",),
+    "playful_swing": ("lateral_reversals", "lateral_excursion"),
+    "celebrating": ("lateral_reversals", "lateral_excursion"),
+    "curiosity": ("lateral_reversals", "lateral_excursion"),
+}
+
+
 def signatures(features: dict, intent: np.ndarray, intensity: np.ndarray) -> dict:
-    """Per intent: realizations, how many hold every per-realization signature, each signature's count, and the
-    group verdicts: ``{intent: {"n", "hold", "each": {sig: count}, "groups": [(sig, holds)]}}``."""
+    """Per intent: realizations, how many hold every per-realization signature, each signature's count, the
+    indices (into the batch) of those that do not, and the group verdicts:
+    ``{intent: {"n", "hold", "each": {sig: count}, "failing": [index], "groups": [(sig, holds)]}}``."""
     out = {}
     groups = _groups(features, intent, intensity)
     for k, name in enumerate(INTENTS):
@@ -158,6 +174,7 @@ def signatures(features: dict, intent: np.ndarray, intensity: np.ndarray) -> dic
             "n": int(sel.sum()),
             "hold": int(every.sum()) if sigs else None,
             "each": {s: int(v.sum()) for s, v in sigs.items()},
+            "failing": np.flatnonzero(sel)[~every].tolist() if sigs else [],
             "groups": [(s, ok) for i, s, ok in groups if i == name],
         }
     return out

@@ -55,6 +55,20 @@ def _parameters(measured_hz: float) -> list[str]:
     return lines
 
 
+def _failing(rod: dict, rod_f: dict, ours_f: dict, names: list[str]) -> list[str]:
+    """One line per realization whose signature fails on the rod: the features it reads, rod and MuJoCo."""
+    lines = []
+    for intent, r in rod.items():
+        for i in r["failing"]:
+            vals = ", ".join(
+                f"{k} {rod_f[k][i]:.3g} (MuJoCo {ours_f[k][i]:.3g})" for k in checks.FEATURES.get(intent, ())
+            )
+            lines.append(f"- {names[i]}: {vals}")
+    if lines:
+        return ["", "The realizations whose signature fails on the rod (features in metres or counts):", "", *lines]
+    return []
+
+
 def _signature_rows(rod: dict, ours: dict) -> list[str]:
     lines = [
         "| intent | realizations | signature (per realization) | holds on the rod | holds on the MuJoCo trunk |",
@@ -175,6 +189,7 @@ def report(out: Path, jobs, prov: dict) -> Path:
         "their undeformed arc lengths) at the end of each control step.",
         "",
         *_signature_rows(rod_sig, ours_sig),
+        *_failing(rod_sig, rod_f, ours_f, [j.name for j in lib_jobs]),
         "",
         "## The hand-tuned MuJoCo trunk against the rod",
         "",
