@@ -63,7 +63,7 @@ def test_written_recordings_read_back_the_same(folder):
     for a, b in zip(back, recs):
         assert a.t[0] == 0.0 and np.allclose(a.t, b.t, atol=1e-6)
         assert np.allclose(a.u, b.u, atol=1e-6)
-        assert np.allclose(a.markers, b.markers, atol=1e-5)  # written in mm with 2 decimals
+        assert np.allclose(a.markers, b.markers, atol=1e-5)  # written in mm with 4 decimals
         assert a.marker_names == NAMES and np.allclose(a.marker_s, S)
         assert (a.intent, a.intensity) == ("nodding", "moderate") and a.markers.shape == (len(a.t), 2, 3)
     # written again: the folder is replaced whole, no temporary folder left beside it
