@@ -92,3 +92,14 @@ def test_a_row_with_an_unquoted_comma_and_a_misspelt_intent_shows_both_faults(tm
     assert "5 cells, but the header has 4" in on_line[0].reason and "unquoted ','" in on_line[0].reason
     assert "unknown intent 'noding'" in on_line[1].reason and on_line[1].column == "intent"
     assert json.loads(json.dumps([p.as_dict() for p in on_line]))[1]["line"] == 3
+
+
+def test_the_shipped_reference_example_imports_from_the_command_line(tmp_path):
+    from experiments.trunk_reference import EXAMPLE, verify
+    from jgrounding.library.importer import main
+
+    assert verify(EXAMPLE) == []  # the files are those the reference wrote (trunk_reference.sha256)
+    out = tmp_path / "lib.npz"
+    assert main(["import", str(EXAMPLE), "--out", str(out)]) == 0
+    card = json.loads(out.with_suffix(".json").read_text())
+    assert card["markers"]["names"] == ["quarter", "mid", "three_quarter", "tip"] and card["num_records"] == 16
