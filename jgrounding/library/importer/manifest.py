@@ -194,14 +194,16 @@ def _file_before_texts(header: list[str], cells: list[str]) -> str | None:
     return cells[at].strip() or None
 
 
-def _labels_of(path: Path, header: list[str], cells: list[str], line: int) -> tuple[DemonstrationError, ...]:
+def _labels_of(
+    path: Path, header: list[str], cells: list[str], line: int, delimiter: str = ","
+) -> tuple[DemonstrationError, ...]:
     """The other problems (a misspelt intent, a bad realization id) of a row with too many cells, reported with
     its cell count in the same run: read with the extra cells joined to the texts, where they belong; none
     when the header has no texts column (then no cell's place is sure)."""
     if "texts" not in header or not all(k in header for k in REQUIRED):
         return ()
     i, extra = header.index("texts"), len(cells) - len(header)
-    merged = cells[:i] + [",".join(cells[i : i + extra + 1])] + cells[i + extra + 1 :]
+    merged = cells[:i] + [delimiter.join(cells[i : i + extra + 1])] + cells[i + extra + 1 :]
     return _row(dict(zip(header, merged)), path, line, "line").problems
 
 
@@ -251,7 +253,12 @@ def _read_csv(path: Path) -> Manifest:
         elif len(cells) > len(header):
             problem = _too_many_cells(path, n, header, cells, delimiter)
             rows.append(
-                Row(n, _file_before_texts(header, cells), None, (problem,) + _labels_of(path, header, cells, n))
+                Row(
+                    n,
+                    _file_before_texts(header, cells),
+                    None,
+                    (problem,) + _labels_of(path, header, cells, n, delimiter),
+                )
             )
         else:
             rows.append(_row(dict(zip(header, cells)), path, n, "line", labelled=not missing))
