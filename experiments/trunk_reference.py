@@ -12,7 +12,7 @@ It drives the rod with the built-in library's commands and records what a lab's 
   library hash, versions), ``trunk_reference.sha256`` (every file's hash but ``timing.json``, this machine's
   time per trajectory) and ``backbone.npz`` (the rod's backbone per control step); a later run with the
   same provenance reuses them (``--force`` regenerates, ``--verify`` checks the hashes). The full set is
-  about 30 MB, so the repository ships a 16-recording example instead, ``assets/trunk_reference/example``
+  over 30 MB, so the repository ships a 16-recording example instead, ``assets/trunk_reference/example``
   (two training recordings of one tuple for every other intent), with its own hash file.
 - Then it measures, and writes ``results/trunk_reference.md``: each intent's kinematic signatures on the
   rod's motion for the 256 demonstrations (beside the MuJoCo trunk's), and the backbone / tip RMS of the

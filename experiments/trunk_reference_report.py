@@ -18,6 +18,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "results" / "trunk_reference.md"
+EXAMPLE = ROOT / "assets" / "trunk_reference" / "example"
 GOAL = 0.90  # the share of realizations whose signature holds on the rod
 
 
@@ -174,6 +175,9 @@ def report(out: Path, jobs, prov: dict) -> Path:
         f"recorded sample; CFL {reference.CFL} of the axial wave speed); markers {', '.join(f'{n} at {s:g} m' for n, s in zip(reference.MARKER_NAMES, reference.MARKER_S))} "
         f"at {reference.RECORD_HZ} Hz with Gaussian noise of {1e3 * reference.MARKER_NOISE_M:g} mm per axis; "
         f"each recording starts from the rod at rest under gravity (settled {reference.SETTLE_S:g} s, heavily damped).",
+        "",
+        f"The recordings take {sum(f.stat().st_size for f in out.rglob('*.csv')) / 1e6:.0f} MB of CSV "
+        f"(the shipped example: {sum(f.stat().st_size for f in EXAMPLE.rglob('*.csv')) / 1e6:.1f} MB).",
         "",
         f"Time per 5 s trajectory: {timing.get('seconds_per_trajectory_mean', float('nan')):.2f} s mean, "
         f"{timing.get('seconds_per_trajectory_max', float('nan')):.2f} s max per process; the whole set "
