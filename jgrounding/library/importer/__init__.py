@@ -37,10 +37,14 @@ with ``--simulate`` when the data are for our trunk model), splits every (intent
 and fails (exit 1, nothing written) when more than ``--max-dropped`` (default 20%) of the manifest's files
 are left out.
 
+Motion-capture markers: a JSON manifest may declare marker columns beside the tendon columns (``markers``,
+``marker_units``, ``max_marker_gap_s``); they are checked with everything else (the map, the columns, gaps,
+units, length: :mod:`jgrounding.library.importer.markers`) and named in the card; the library keeps the commands.
+
 Modules, in the order of a run: ``manifest`` (the manifest's rows), ``parse`` (one file -> a table),
-``checks`` (every check), ``recording`` (one file read and checked), ``pipeline`` (the folder), ``card``
-(the arrays and the card), ``cli`` (the command line); ``errors`` holds the error types. Every public name
-is importable from here.
+``checks`` (every check), ``markers`` (the marker map and the marker columns' checks), ``recording`` (one file
+read and checked), ``pipeline`` (the folder), ``card`` (the arrays and the card), ``cli`` (the command line);
+``errors`` holds the error types. Every public name is importable from here.
 """
 
 from jgrounding.library.importer.card import LIBRARY_VERSION
