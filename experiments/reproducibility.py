@@ -75,12 +75,23 @@ def run_one(method: str, steps: int, seeds: str, xla_flags: str) -> dict:
     return {**out, "seconds": time.perf_counter() - t0}
 
 
+def stack() -> str:
+    """The versions a run trained on: jax, flax, optax and MuJoCo."""
+    import flax
+    import jax
+    import mujoco
+    import optax
+
+    return f"jax {jax.__version__}, flax {flax.__version__}, optax {optax.__version__}, MuJoCo {mujoco.__version__}"
+
+
 def render(res: dict) -> str:
     """results/reproducibility.md of a run: every run's digest and success, then per method what differs from
     its default run, and the summary across methods."""
     lines = [
         f"Reproducibility: each method trained {res['steps']} steps (seeds {res['seeds']}) in a fresh process per "
-        f"setting on {res['cpu_count']} cores ({res.get('cpu_isa', '?')}); success = one sample per held-out tuple "
+        f"setting on {res['cpu_count']} cores ({res.get('cpu_isa', '?')}; {res.get('stack', 'stack not recorded')}); "
+        "success = one sample per held-out tuple "
         "within tau of its reference (the paper's protocol).",
         "",
         "| Method | setting | parameter digest | success per seed | seconds |",
@@ -128,6 +139,7 @@ def main(argv=None) -> int:
 
         res = {"steps": args.steps, "seeds": args.seeds, "cpu_count": os.cpu_count(), "runs": {}}
         res["cpu_isa"] = environment().cpu_isa
+        res["stack"] = stack()
         for method in METHODS:
             res["runs"][method] = {}
             for label, flags in SETTINGS:
