@@ -244,7 +244,8 @@ def run(cfg: Config, lib=None) -> AblationResult:
         environment=environment(),
         date=datetime.datetime.now().isoformat(timespec="seconds"),
         machine=f"{platform.node()} · {bench_sample.cpu_model()} ({bench_sample.cpu_isa()}) · "
-        f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()})",
+        f"{__import__('os').cpu_count()} cores · jax {jax.__version__} ({jax.default_backend()}) · "
+        f"MuJoCo {__import__('mujoco').__version__}",
         per_sample_rms=per_sample,
         samples=samples,
     )
