@@ -63,9 +63,22 @@ def _physics_note(config) -> list[str]:
 
 
 def card(
-    arrays, *, config, kept, recs, order, screening_names, rejected, dropped, num_dropped, folder, manifest
+    arrays,
+    *,
+    config,
+    kept,
+    recs,
+    order,
+    screening_names,
+    rejected,
+    dropped,
+    num_dropped,
+    folder,
+    manifest,
+    marker_map=None,
 ) -> dict:
-    """The card of an imported library (``dropped``: every problem left out; ``num_dropped``: the files)."""
+    """The card of an imported library (``dropped``: every problem left out; ``num_dropped``: the files;
+    ``markers``: the motion-capture markers the recordings hold, checked but not part of the library's arrays)."""
     counts = {}
     for k, i in enumerate(order):
         c = counts.setdefault(tuple_name(kept[i].intent, kept[i].intensity), {"train": 0, "heldout": 0})
@@ -94,6 +107,14 @@ def card(
         "notes": {kept[i].file: list(recs[i].notes) for i in range(len(kept)) if recs[i].notes},
         "texts_default_description": _texts(kept, order)[1],
         "durations_s": {kept[i].file: round(float(recs[i].time[-1] - recs[i].time[0]), 6) for i in range(len(kept))},
+        "markers": None
+        if marker_map is None
+        else {
+            "names": list(marker_map.names),
+            "s_m": [float(x) for x in marker_map.s],
+            "units": marker_map.units,
+            "max_gap_s": marker_map.max_gap_s,
+        },
         "manifest": {"file": manifest.name, "sha256": _sha256(manifest)},
         "sources_sha256": {e.file: _sha256(folder / e.file) for e in kept},
     }

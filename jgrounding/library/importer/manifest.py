@@ -22,7 +22,8 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS, intensity_index, intent_
 
 MANIFEST_NAMES = ("manifest.json", "manifest.csv")
 REQUIRED = ("file", "intent", "intensity")
-FIELDS = ("limits", "time_column", "simulate", "columns")  # a JSON manifest's global fields
+FIELDS = ("limits", "time_column", "simulate", "columns", "markers", "marker_units", "max_marker_gap_s")
+# a JSON manifest's global fields (the last three: motion-capture markers, jgrounding.library.importer.markers)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -193,6 +194,17 @@ def _file_before_texts(header: list[str], cells: list[str]) -> str | None:
     return cells[at].strip() or None
 
 
+def _labels_of(path: Path, header: list[str], cells: list[str], line: int) -> tuple[DemonstrationError, ...]:
+    """The other problems (a misspelt intent, a bad realization id) of a row with too many cells, reported with
+    its cell count in the same run: read with the extra cells joined to the texts, where they belong; none
+    when the header has no texts column (then no cell's place is sure)."""
+    if "texts" not in header or not all(k in header for k in REQUIRED):
+        return ()
+    i, extra = header.index("texts"), len(cells) - len(header)
+    merged = cells[:i] + [",".join(cells[i : i + extra + 1])] + cells[i + extra + 1 :]
+    return _row(dict(zip(header, merged)), path, line, "line").problems
+
+
 def _read_json(path: Path) -> Manifest:
     try:
         doc = json.loads(path.read_text())
@@ -238,7 +250,9 @@ def _read_csv(path: Path) -> Manifest:
             rows.append(Row(n, None, None))
         elif len(cells) > len(header):
             problem = _too_many_cells(path, n, header, cells, delimiter)
-            rows.append(Row(n, _file_before_texts(header, cells), None, (problem,)))
+            rows.append(
+                Row(n, _file_before_texts(header, cells), None, (problem,) + _labels_of(path, header, cells, n))
+            )
         else:
             rows.append(_row(dict(zip(header, cells)), path, n, "line", labelled=not missing))
     return Manifest(path, tuple(rows), {}, problems)

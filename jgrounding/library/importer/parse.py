@@ -134,14 +134,15 @@ def _time_column(table: _Csv, path: Path, time_column: str | None) -> str:
     return found
 
 
-def _candidates(table: _Csv, time_column: str, named=()) -> tuple[tuple[str, ...], list[str]]:
+def _candidates(table: _Csv, time_column: str, named=(), exclude=()) -> tuple[tuple[str, ...], list[str]]:
     """(the columns that may be tendons, notes on those that hold no numbers and so are not); a column
-    ``named`` as a tendon always may be."""
+    ``named`` as a tendon always may be, one in ``exclude`` (a marker column) never is."""
     full = [cells for _, cells in table.rows if len(cells) == len(table.header)]
     named = {c.lower() for c in named}
+    excluded = {c.lower() for c in exclude}
     keep, notes = [], []
     for k, name in enumerate(table.header):
-        if name == time_column or name.lower() in IGNORED_COLUMNS:
+        if name == time_column or name.lower() in IGNORED_COLUMNS or name.lower() in excluded:
             continue
         if name.lower() not in named and full and not any(_is_number(cells[k], table.decimal_comma) for cells in full):
             shown = f"column {name!r}" if name else f"column {k + 1} (no name; a trailing delimiter?)"
@@ -152,7 +153,13 @@ def _candidates(table: _Csv, time_column: str, named=()) -> tuple[tuple[str, ...
     return tuple(keep), notes
 
 
-def tendon_candidates(path, time_column: str | None = None) -> tuple[str, ...] | None:
+def read_cells(path) -> _Csv:
+    """A CSV recording's header and cells as text (delimiter, BOM and comments handled), unchecked: how the
+    marker columns are read beside the tendon columns (:mod:`jgrounding.library.importer.markers`)."""
+    return _read_csv(Path(path))
+
+
+def tendon_candidates(path, time_column: str | None = None, exclude=()) -> tuple[str, ...] | None:
     """The columns of a CSV recording that may be tendons (``None`` for a file that cannot be read or a
     command stream JSON): how the import picks the reference file whose columns name the tendons."""
     path = Path(path)
@@ -160,16 +167,16 @@ def tendon_candidates(path, time_column: str | None = None) -> tuple[str, ...] |
         return None
     try:
         table = _read_csv(path)
-        return _candidates(table, _time_column(table, path, time_column))[0]
+        return _candidates(table, _time_column(table, path, time_column), exclude=exclude)[0]
     except DemonstrationError:
         return None
 
 
 def _tendons(
-    table: _Csv, path: Path, time_column: str, num_tendons: int, columns, reference: str | None
+    table: _Csv, path: Path, time_column: str, num_tendons: int, columns, reference: str | None, exclude=()
 ) -> tuple[tuple[str, ...], list[str]]:
     """(tendon columns in the order of the limits, notes), or every column problem raised."""
-    candidates, notes = _candidates(table, time_column, columns or ())
+    candidates, notes = _candidates(table, time_column, columns or (), exclude)
     raise_if_any(
         checks.check_tendon_columns(
             path, table.header_line, time_column, candidates, num_tendons, columns, reference, notes
@@ -189,10 +196,10 @@ def _tendons(
     return tendons, mapping + notes
 
 
-def _read_csv_table(path: Path, num_tendons: int, time_column: str | None, columns, reference) -> Table:
+def _read_csv_table(path: Path, num_tendons: int, time_column: str | None, columns, reference, exclude=()) -> Table:
     table = _read_csv(path)
     tcol = _time_column(table, path, time_column)
-    tendons, notes = _tendons(table, path, tcol, num_tendons, columns, reference)
+    tendons, notes = _tendons(table, path, tcol, num_tendons, columns, reference, exclude)
     header = table.header
     order = [header.index(tcol)] + [header.index(c) for c in tendons]
     rows, row_lines, seen = [], [], {}
@@ -259,7 +266,9 @@ def _read_command_json(path: Path, num_tendons: int) -> Table:
     return Table(path, data[:, 0], data[:, 1:], names, tuple(range(1, len(rows) + 1)), "time", "command", ())
 
 
-def read_table(path, num_tendons: int, time_column: str | None = None, columns=None, reference=None) -> Table:
+def read_table(
+    path, num_tendons: int, time_column: str | None = None, columns=None, reference=None, exclude=()
+) -> Table:
     """Read one demonstration file: a CSV, or a command stream ``.json``.
 
     Args:
@@ -269,6 +278,7 @@ def read_table(path, num_tendons: int, time_column: str | None = None, columns=N
       columns: the tendon columns' names in the order of the limits (matched in any case; other columns are
         ignored), or ``None`` to take every column that holds numbers besides time and step/frame.
       reference: the file ``columns`` come from, named in messages (``None``: "the first file's").
+      exclude: columns that are never tendons (the motion-capture marker columns of the manifest's map).
 
     Returns: the :class:`Table`; raises :class:`DemonstrationError` (``ImportProblems`` for several).
     """
@@ -277,4 +287,4 @@ def read_table(path, num_tendons: int, time_column: str | None = None, columns=N
         raise DemonstrationError(path, "file not found", fix="check the file name in the manifest")
     if path.suffix.lower() == ".json":
         return _read_command_json(path, num_tendons)
-    return _read_csv_table(path, num_tendons, time_column, columns, reference)
+    return _read_csv_table(path, num_tendons, time_column, columns, reference, exclude)

@@ -24,7 +24,7 @@ from jgrounding.actuation import splines
 from jgrounding.config import NUM_STEPS  # T of Table I
 from jgrounding.library import screening
 from jgrounding.library.importer import card as cards
-from jgrounding.library.importer import checks, parse
+from jgrounding.library.importer import checks, markers, parse
 from jgrounding.library.importer.errors import DemonstrationError, ImportProblems, TooManyDropped, problems_of
 from jgrounding.library.importer.manifest import Manifest, find_manifest, read_manifest, tuple_name
 from jgrounding.library.importer.recording import Recording, inspect_recording
@@ -78,7 +78,9 @@ def _reduce(x: np.ndarray, num_controls: int | None) -> tuple[np.ndarray, np.nda
     return c, raw, np.asarray(safety.make_safe(raw), np.float32)
 
 
-def _reference(man: Manifest, folder: Path, config: ImportConfig) -> tuple[tuple[str, ...] | None, str | None]:
+def _reference(
+    man: Manifest, folder: Path, config: ImportConfig, exclude=()
+) -> tuple[tuple[str, ...] | None, str | None]:
     """(the tendon columns' names in the order of the limits, the file they come from): the config's or the
     manifest's ``columns``, else those of the first listed CSV with one tendon column per declared limit."""
     named = config.columns or (tuple(man.fields["columns"]) if man.fields.get("columns") else None)
@@ -88,17 +90,21 @@ def _reference(man: Manifest, folder: Path, config: ImportConfig) -> tuple[tuple
         return tuple(named), None if config.columns else f"{man.path.name} 'columns'"
     for row in man.rows:
         if row.file is not None:
-            found = parse.tendon_candidates(folder / row.file, config.time_column)
+            found = parse.tendon_candidates(folder / row.file, config.time_column, exclude)
             if found is not None and len(found) == config.num_tendons:
                 return found, row.file
     return None, None
 
 
-def _read_all(man: Manifest, folder: Path, config: ImportConfig, problems: list) -> tuple[list, list[Recording]]:
-    """(the valid manifest entries, their recordings): every listed file read and checked, then the folder's
-    checks; every problem on the way appended to ``problems``, in manifest order."""
+def _read_all(
+    man: Manifest, folder: Path, config: ImportConfig, problems: list, mmap=None
+) -> tuple[list, list[Recording]]:
+    """(the valid manifest entries, their recordings): every listed file read and checked (its marker columns
+    too, with the marker map ``mmap``), then the folder's checks; every problem on the way appended to
+    ``problems``, in manifest order."""
     unit, rows = man.unit, man.rows
-    columns, reference = _reference(man, folder, config)
+    exclude = markers.declared_columns(man.fields)
+    columns, reference = _reference(man, folder, config, exclude)
     twice = checks.check_listed_once(rows, man.path, unit)
     recs: dict[int, Recording] = {}
     for i, row in enumerate(rows):
@@ -108,18 +114,29 @@ def _read_all(man: Manifest, folder: Path, config: ImportConfig, problems: list)
             continue
         if row.file is None:
             continue
+        leave_out = f"or leave the file out: delete {man.path.name} {unit} {row.line}"
         try:
-            recs[i] = inspect_recording(
+            rec = inspect_recording(
                 folder / row.file,
                 config.limits,
                 config.time_column,
                 tolerance=config.tolerance,
                 columns=columns,
                 reference=reference,
+                exclude=exclude,
+                motion_checks=not exclude,
             )
         except DemonstrationError as err:
-            leave_out = f"or leave the file out: delete {man.path.name} {unit} {row.line}"
             problems.extend(p.with_fix(leave_out) for p in problems_of(err))
+            continue
+        if mmap is not None:
+            _, notes, bad = markers.read_markers(folder / row.file, mmap, rec.time, rec.lines)
+            problems.extend(p.with_fix(leave_out) for p in bad)
+            if bad:
+                continue
+            rec = dataclasses.replace(rec, notes=rec.notes + tuple(notes))
+        if not exclude or mmap is not None:
+            recs[i] = rec
     off = checks.check_time_units(recs, rows, folder, man.path, unit)
     problems.extend(off.values())
     entries = {i: rows[i].entry for i in recs if rows[i].entry is not None and i not in off}
@@ -172,8 +189,9 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         )
     man = read_manifest(manifest)
     num_files = len(man.rows)
-    problems: list[DemonstrationError] = list(man.problems)
-    kept, recs = _read_all(man, folder, config, problems)
+    mmap, bad_map = markers.marker_map(man.fields, man.path)
+    problems: list[DemonstrationError] = list(man.problems) + bad_map
+    kept, recs = _read_all(man, folder, config, problems, mmap)
     if not kept:
         if problems and not config.drop_invalid:
             raise ImportProblems(problems, num_files)
@@ -234,5 +252,6 @@ def import_folder(folder, config: ImportConfig, manifest=None) -> tuple[dict, di
         num_dropped=num_dropped,
         folder=folder,
         manifest=manifest,
+        marker_map=mmap,
     )
     return arrays, card

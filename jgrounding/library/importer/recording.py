@@ -24,7 +24,15 @@ class Recording:
 
 
 def inspect_recording(
-    path, limits, time_column: str | None = None, *, tolerance: float = checks.TOLERANCE, columns=None, reference=None
+    path,
+    limits,
+    time_column: str | None = None,
+    *,
+    tolerance: float = checks.TOLERANCE,
+    columns=None,
+    reference=None,
+    exclude=(),
+    motion_checks: bool = True,
 ) -> Recording:
     """Read and check one demonstration file against per-tendon ``limits`` ``[(slack, full), ...]``.
 
@@ -39,16 +47,23 @@ def inspect_recording(
     :data:`checks.FLAT_FRACTION` of its travel). Accepted but reported in ``notes``: readings clipped into the
     limits (counted in ``clipped``), columns mapped by name from another order, columns that are not tendons,
     a BOM, another delimiter, a decimal comma, milliseconds.
+
+    ``exclude`` names columns that are never tendons (motion-capture markers). ``motion_checks=False`` skips
+    the stuck-channel and flat-recording checks: in a recording with markers the tendon columns are the
+    commands sent, where a held command is no stuck sensor and a still trunk is data (its sag).
     """
-    table = parse.read_table(path, len(limits), time_column, columns, reference)
+    table = parse.read_table(path, len(limits), time_column, columns, reference, exclude)
     raise_if_any(checks.check_row_count(table))
     values, clipped = checks.clip_noise(table, limits, tolerance)
     raise_if_any(
         checks.check_time_increases(table)
         + checks.check_time_gaps(table)
         + checks.check_limits(table, limits, tolerance)
-        + checks.check_flat(table, values, limits)
-        + checks.check_stuck(table, values, limits)
+        + (
+            checks.check_flat(table, values, limits) + checks.check_stuck(table, values, limits)
+            if motion_checks
+            else []
+        )
     )
     notes = list(table.notes)
     if clipped:
