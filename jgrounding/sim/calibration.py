@@ -232,16 +232,26 @@ class Problem:
 
         residuals, preds, records = [], [], []
         for seq in self.sequences:
-            res, pred, rec = sysid.model_residual(
-                x,
-                pdict,
-                lambda p: self.build_model(p),
-                seq.measured_rollout,
-                modify_residual=self._marker_residual,
-                n_threads=n_threads(),
-                resample_true=False,  # controls are already on the physics clock (control_series)
-                return_pred_all=return_pred_all,
-            )
+            try:
+                res, pred, rec = sysid.model_residual(
+                    x,
+                    pdict,
+                    lambda p: self.build_model(p),
+                    seq.measured_rollout,
+                    modify_residual=self._marker_residual,
+                    n_threads=n_threads(),
+                    resample_true=False,  # controls are already on the physics clock (control_series)
+                    return_pred_all=return_pred_all,
+                )
+            except ValueError as e:  # MuJoCo reset a diverging simulation: its clock went back to 0
+                if "strictly increasing" not in str(e):
+                    raise
+                x2 = np.asarray(x, float).reshape(len(self.settings.parameters), -1)
+                span = {n: f"{row.min():.4g}..{row.max():.4g}" for n, row in zip(self.settings.parameters, x2)}
+                raise CalibrationError(
+                    f"the trunk goes unstable at parameters in {span} (MuJoCo reset a diverging simulation); "
+                    "narrow the bounds of the parameter that sits at an extreme"
+                ) from None
             if np.ndim(x) == 2:  # (N_each, k * chunks), columns k-major: -> (chunks * N_each, k) as the optimizer reads
                 k, chunks = x.shape[1], len(seq.measured_rollout)
                 res = res.reshape(-1, k, chunks).transpose(2, 0, 1).reshape(-1, k)
