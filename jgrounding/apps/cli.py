@@ -113,6 +113,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="simulate candidates on the trunk and keep only feasible ones (reports the rejected)",
     )
     p.add_argument(
+        "--trunk",
+        default=None,
+        help="the trunk MJCF to screen on and render (a fitted one, python -m jgrounding.sim calibrate; "
+        "default: the shipped trunk)",
+    )
+    p.add_argument(
         "--force",
         action="store_true",
         help="drive the grounded tuple even when its confidence is below the calibrated threshold",
@@ -173,7 +179,9 @@ def run(args: argparse.Namespace) -> int:
             f"--units lab needs a checkpoint trained on an imported library (its card holds the limits); "
             f"--checkpoint {args.checkpoint} has none"
         )
-    responder = Responder(args.checkpoint, allow_library_mismatch=args.allow_library_mismatch, backend=args.backend)
+    responder = Responder(
+        args.checkpoint, allow_library_mismatch=args.allow_library_mismatch, backend=args.backend, trunk=args.trunk
+    )
     t0 = time.perf_counter()
     decision = responder.decide(
         args.text if args.intent is None else None, intent=args.intent, intensity=args.intensity, force=args.force
@@ -290,9 +298,9 @@ def run(args: argparse.Namespace) -> int:
         from jgrounding.sim import render
 
         t0 = time.perf_counter()
-        files["posture"] = str(render.render_posture(u[0], out / "posture.png"))
-        files["keyframes"] = str(render.render_keyframes(u[0], out / "keyframes.png"))
-        files["motion"] = str(render.render_motion(u[0], out / "motion.gif"))
+        files["posture"] = str(render.render_posture(u[0], out / "posture.png", trunk=args.trunk))
+        files["keyframes"] = str(render.render_keyframes(u[0], out / "keyframes.png", trunk=args.trunk))
+        files["motion"] = str(render.render_motion(u[0], out / "motion.gif", trunk=args.trunk))
         say("render", f"rendered motion [{time.perf_counter() - t0:.1f} s]")
     for name, path in files.items():
         say("file", f"  {name:9s} {path}", kind=name, path=path)
@@ -321,6 +329,13 @@ def main(argv: list[str] | None = None) -> int:
         Path(args.out).mkdir(parents=True, exist_ok=True)
     except (OSError, ValueError) as e:  # a file in the way, no permission, a NUL in the name, ...
         parser.error(f"--out {args.out!r} cannot be used as the output folder ({e})")
+    if args.trunk is not None:
+        from jgrounding import sim
+
+        try:
+            args.trunk = sim.resolve_trunk(args.trunk)
+        except FileNotFoundError as e:
+            parser.error(f"--trunk: {e}")
     try:
         return run(args)
     except (ValueError, TypeError) as e:

@@ -49,48 +49,69 @@ from jgrounding.sim.measures import (  # noqa: F401  (re-exported: the simulator
     turning_angle,
     user_distance,
 )
-from jgrounding.sim.native import load_model, rollout_native, validate_actuation  # noqa: F401
+from jgrounding.sim.native import (  # noqa: F401
+    has_delay,
+    load_model,
+    resolve_trunk,
+    rollout_native,
+    trunk_identity,
+    trunk_mismatch,
+    validate_actuation,
+)
 
 ENGINES = ("auto", "native", "mjx")
 MJX_CHUNK = 1024  # the largest padded chunk MJX runs (evaluation.physics rolls out batches of this size)
 
 
-def resolve_engine(engine: str = "auto") -> str:
-    """``"auto"`` -> ``"mjx"`` on an accelerator backend (GPU/TPU), ``"native"`` on CPU; other names pass
-    through after validation."""
+def resolve_engine(engine: str = "auto", trunk: str | None = None) -> str:
+    """``"auto"`` -> ``"mjx"`` on an accelerator backend (GPU/TPU), ``"native"`` on CPU or for a ``trunk`` with a
+    command delay (MJX does not simulate MuJoCo's actuator delay; ``"mjx"`` for such a trunk is an error); other
+    names pass through after validation."""
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
+    delayed = trunk is not None and has_delay(resolve_trunk(trunk))
+    if engine == "mjx" and delayed:
+        raise ValueError(
+            f"trunk {trunk} has a command delay, which only the native engine simulates: use engine='native'"
+        )
     if engine != "auto":
         return engine
     import jax
 
-    return "native" if jax.default_backend() == "cpu" else "mjx"
+    return "native" if jax.default_backend() == "cpu" or delayed else "mjx"
 
 
-def rollout(u, *, engine: str = "auto", contact: bool = True) -> Rollout:
+def rollout(u, *, engine: str = "auto", contact: bool = True, trunk: str | None = None) -> Rollout:
     """Simulate actuation ``(T, 4)`` or ``(B, T, 4)`` in [0, 1]; returns a batch-first :class:`Rollout`.
 
     ``engine``: ``"auto"`` (default: native on CPU, MJX on an accelerator), ``"native"`` (MuJoCo,
     multi-threaded ``mujoco.rollout``) or ``"mjx"`` (compiled batched JAX rollout, padded power-of-two
     chunks of at most :data:`MJX_CHUNK`). ``contact=False`` removes the user's contact geometry
-    (distances are still measured).
+    (distances are still measured). ``trunk``: the MJCF of the trunk to simulate (a fitted one, from
+    ``python -m jgrounding.sim calibrate``); None, the shipped hand-tuned trunk.
     """
-    engine = resolve_engine(engine)
+    trunk = resolve_trunk(trunk)
+    engine = resolve_engine(engine, trunk)
     u = validate_actuation(u)
     if engine == "native":
-        return rollout_native(u, contact)
+        return rollout_native(u, contact, trunk)
     from jgrounding.sim import mjx
 
     # Padded chunks of the next power of two (at most MJX_CHUNK): a handful of compiled programs serve
     # every batch size.
-    return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, 1 << (u.shape[0] - 1).bit_length()))
+    return mjx.rollout_mjx(u, contact, chunk=min(MJX_CHUNK, 1 << (u.shape[0] - 1).bit_length()), trunk=trunk)
 
 
-def margins(u, *, engine: str = "auto") -> np.ndarray:
+def margins(u, *, engine: str = "auto", trunk: str | None = None) -> np.ndarray:
     """Feasibility margin (:func:`feasibility_margin`) of every trajectory ``u (B, T, 4)``, rolled out in
     chunks of :data:`MJX_CHUNK` -> ``(B,)``; ``>= 0`` exactly when feasible. What screening
-    (``jg.sample(..., screen=True)``, the physics-aware fine-tuning) keeps or rejects by."""
-    engine = resolve_engine(engine)
+    (``jg.sample(..., screen=True)``, the physics-aware fine-tuning) keeps or rejects by; on ``trunk`` (None: the
+    shipped one)."""
+    trunk = resolve_trunk(trunk)
+    engine = resolve_engine(engine, trunk)
     return np.concatenate(
-        [feasibility_margin(rollout(u[i : i + MJX_CHUNK], engine=engine)) for i in range(0, len(u), MJX_CHUNK)]
+        [
+            feasibility_margin(rollout(u[i : i + MJX_CHUNK], engine=engine, trunk=trunk))
+            for i in range(0, len(u), MJX_CHUNK)
+        ]
     )

@@ -42,9 +42,9 @@ def enable_compilation_cache(path: str | Path | None = None) -> None:
     io.enable_compilation_cache(path, min_compile_secs=1.0)
 
 
-@functools.lru_cache(maxsize=2)
-def _model(contact: bool):
-    m = copy.copy(load_model(None, contact))  # a copy: the cached native model keeps its sensors
+@functools.lru_cache(maxsize=4)
+def _model(trunk: str | None, contact: bool):
+    m = copy.copy(load_model(trunk, contact))  # a copy: the cached native model keeps its sensors
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
     body_ids = np.array([m.body(f"seg{i}").id for i in range(measures.NUM_SEGMENTS)])
     return m, mjx.put_model(m), body_ids, m.site("tip").id
@@ -73,8 +73,8 @@ def compiler_options() -> dict | None:
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled(contact: bool):
-    m, mx, body_ids, tip_id = _model(contact)
+def _compiled(trunk: str | None, contact: bool):
+    m, mx, body_ids, tip_id = _model(trunk, contact)
 
     def one(u):  # u: (T, 4)
         d0 = mjx.make_data(mx)
@@ -94,13 +94,15 @@ def _compiled(contact: bool):
     return jax.jit(jax.vmap(one), compiler_options=compiler_options())
 
 
-def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:
+def rollout_mjx(
+    u: np.ndarray, contact: bool = True, chunk: int | None = None, trunk: str | None = None
+) -> measures.Rollout:
     """``(B, T, 4)`` validated commands -> :class:`measures.Rollout` via MJX (float32).
 
     With ``chunk``, the batch runs as padded chunks of that size, so one compiled program serves every
     batch size (compilation, not execution, dominates on CPU).
     """
-    fn = _compiled(contact)
+    fn = _compiled(trunk, contact)
     u = jnp.asarray(u, jnp.float32)
     if chunk is None or u.shape[0] == chunk:
         outs = [jax.device_get(fn(u))]
@@ -112,6 +114,12 @@ def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -
             res = jax.device_get(fn(jnp.pad(part, ((0, pad), (0, 0), (0, 0)))))
             outs.append(tuple(x[: chunk - pad] for x in res))
     points, tendon, touch = (np.concatenate(x) for x in zip(*outs))
+    rest_tip = None
+    if trunk is not None:  # a trunk of its own: its tip at rest (the shipped trunk's is the straight-down default)
+        m = _model(trunk, contact)[0]
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        rest_tip = d.site_xpos[m.site("tip").id].copy()
     return measures.finish_rollout(
-        np.asarray(points, np.float64), np.asarray(tendon, np.float64), np.asarray(touch, np.float64)
+        np.asarray(points, np.float64), np.asarray(tendon, np.float64), np.asarray(touch, np.float64), rest_tip
     )

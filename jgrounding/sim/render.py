@@ -95,8 +95,10 @@ def _fade_user(model, renderer) -> None:
             g.rgba[3] = USER_ALPHA
 
 
-def _frames_mujoco(u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool) -> list[list[np.ndarray]]:
-    model = sim.load_model()
+def _frames_mujoco(
+    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool, trunk: str | None = None
+) -> list[list[np.ndarray]]:
+    model = sim.load_model(trunk)
     data, rest = mujoco.MjData(model), mujoco.MjData(model)
     mujoco.mj_forward(model, rest)
     renderer = mujoco.Renderer(model, HEIGHT, WIDTH)
@@ -147,15 +149,15 @@ def plot_backbone(ax, backbone, *, color="tab:gray", alpha: float = 1.0, user: b
 
 
 def _frames_matplotlib(
-    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool
+    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool, trunk: str | None = None
 ) -> list[list[np.ndarray]]:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    backbone = sim.rollout(u).backbone[0]
-    rest = sim.rollout(np.zeros((1, sim.NUM_CHANNELS))).backbone[0, 0]
+    backbone = sim.rollout(u, trunk=trunk).backbone[0]
+    rest = sim.rollout(np.zeros((1, sim.NUM_CHANNELS)), trunk=trunk).backbone[0, 0]
     frames = []
     for t in steps:
         tiles = []
@@ -176,7 +178,14 @@ def _frames_matplotlib(
 
 
 def frames(
-    u, steps: list[int], azimuth=SIDE_VIEW, backend: str = "auto", *, labels: bool = False, ghost: bool = False
+    u,
+    steps: list[int],
+    azimuth=SIDE_VIEW,
+    backend: str = "auto",
+    *,
+    labels: bool = False,
+    ghost: bool = False,
+    trunk: str | None = None,
 ) -> tuple[list[np.ndarray], str]:
     """RGB frames of the motion of actuation ``(T, 4)`` at the given control steps, and the backend used.
 
@@ -185,7 +194,9 @@ def frames(
     ``(HEIGHT, n_views * WIDTH, 3)``. ``labels`` writes each view's name in its corner; ``ghost`` draws
     the rest posture (all tendons slack) as a thin blue rod, for comparison.
     ``backend``: "auto" (MuJoCo's renderer, matplotlib if GL cannot start), "mujoco" or "matplotlib".
+    ``trunk``: the trunk MJCF shown (a fitted one; None, the shipped trunk).
     """
+    trunk = sim.resolve_trunk(trunk)
     if backend not in ("auto", "mujoco", "matplotlib"):
         raise ValueError(f"unknown backend {backend!r}; valid: auto, mujoco, matplotlib")
     views = _as_views(azimuth)
@@ -196,13 +207,13 @@ def frames(
     tiles, used = None, "matplotlib"
     if backend != "matplotlib":
         try:
-            tiles, used = _frames_mujoco(u, steps, views, ghost), "mujoco"
+            tiles, used = _frames_mujoco(u, steps, views, ghost, trunk), "mujoco"
         except Exception as e:  # no GL context on this machine: fall back
             if backend == "mujoco":
                 raise
             log.info("MuJoCo renderer unavailable (%s); using matplotlib", e)
     if tiles is None:
-        tiles = _frames_matplotlib(u, steps, views, ghost)
+        tiles = _frames_matplotlib(u, steps, views, ghost, trunk)
     if labels:
         tiles = [[_label(f, VIEW_NAMES.get(a, f"azimuth {a:g} deg")) for f, a in zip(ts, views)] for ts in tiles]
     return [np.concatenate(ts, axis=1) for ts in tiles], used
@@ -219,16 +230,16 @@ def _png(frame: np.ndarray, colors: int | None = None) -> bytes:
     return buf.getvalue()
 
 
-def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS) -> Path:
+def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS, trunk: str | None = None) -> Path:
     """PNG of the posture at control ``step`` of actuation ``(150, 4)`` (default: both views, labelled)."""
     from jgrounding.io import write_atomic
 
     n = np.asarray(u).shape[-2]
-    (img,), _ = frames(u, [step % n], azimuth, labels=True)
+    (img,), _ = frames(u, [step % n], azimuth, labels=True, trunk=trunk)
     return write_atomic(path, _png(img))
 
 
-def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS) -> Path:
+def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS, trunk: str | None = None) -> Path:
     """Animated GIF of actuation ``(150, 4)``, one frame every ``stride`` control steps (default: both views).
 
     The defaults play in real time (5 control steps of 1/30 s per frame at 6 frames per second).
@@ -238,7 +249,7 @@ def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS
     from jgrounding.io import write_atomic
 
     n = np.asarray(u).shape[-2]
-    imgs, _ = frames(u, list(range(0, n, stride)) + [n - 1], azimuth, labels=True)
+    imgs, _ = frames(u, list(range(0, n, stride)) + [n - 1], azimuth, labels=True, trunk=trunk)
     pil = [Image.fromarray(f) for f in imgs]
     buf = io.BytesIO()
     pil[0].save(buf, format="GIF", save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
@@ -248,7 +259,7 @@ def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS
 KEYFRAME_STEPS = (30, 60, 90, 120, 149)  # t = 1, 2, 3, 4, 5 s
 
 
-def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarray:
+def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6, trunk: str | None = None) -> np.ndarray:
     """One RGB picture of the postures of actuation ``(T, 4)`` at ``steps`` (columns) from each view (rows),
     each tile ``scale`` times the frame size and labelled with its time (the first column with its view).
     ``steps`` defaults to :data:`KEYFRAME_STEPS` (five moments, 1 s apart, for T = 150)."""
@@ -258,7 +269,7 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
     if steps is None:
         n = np.asarray(u).shape[-2]
         steps = KEYFRAME_STEPS if n == sim.NUM_STEPS else tuple(np.linspace(0, n - 1, 6).astype(int)[1:])
-    imgs, _ = frames(u, list(steps), views)
+    imgs, _ = frames(u, list(steps), views, trunk=trunk)
     w, h = int(WIDTH * scale), int(HEIGHT * scale)
     rows = []
     for v, a in enumerate(views):
@@ -271,8 +282,8 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6) -> np.ndarr
     return np.concatenate(rows, axis=0)[:-2, :-2]
 
 
-def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS) -> Path:
+def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS, trunk: str | None = None) -> Path:
     """PNG of :func:`keyframes`: the motion of actuation ``(150, 4)`` at a glance."""
     from jgrounding.io import write_atomic
 
-    return write_atomic(path, _png(keyframes(u, steps, azimuth), colors=256))
+    return write_atomic(path, _png(keyframes(u, steps, azimuth, trunk=trunk), colors=256))

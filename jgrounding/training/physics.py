@@ -139,7 +139,7 @@ def finetune(
         u = np.asarray(draw(params, k_gen))  # (S, 64, C, T, 4)
         flat = u.reshape(-1, *u.shape[-2:])
         t0 = time.perf_counter()
-        margin = sim.margins(flat, engine=physics.engine).reshape(u.shape[:3])
+        margin = sim.margins(flat, engine=physics.engine, trunk=physics.trunk).reshape(u.shape[:3])
         seconds = time.perf_counter() - t0
         keep = margin >= physics.margin
         report.append(
