@@ -63,6 +63,13 @@ class CalibrationError(ValueError):
     """Calibration cannot proceed or did not succeed; the message says why and what to change."""
 
 
+class UnstableError(CalibrationError):
+    """The trunk diverges at some parameter values (MuJoCo reset it, or a marker left the scene)."""
+
+
+UNSTABLE_RESIDUAL = 1.0  # m per residual entry for a trial step where the trunk diverges: the optimizer rejects it
+
+
 @dataclasses.dataclass(frozen=True)
 class Settings:
     """What to fit and how: parameter names, their bounds, the split and the optimizer's budget."""
@@ -210,6 +217,8 @@ class Problem:
     params: object  # sysid.ParameterDict
     sequences: list  # sysid.ModelSequences, one per clock
     recordings: list
+    sizes: dict = dataclasses.field(default_factory=dict)  # residual length per sequence (penalty of a trial step)
+    unstable_steps: int = 0  # trial steps rejected because the trunk diverged there
 
     def trunk(self, values) -> tm.TrunkParams:
         """The trunk at parameter vector ``values`` (in ``settings.parameters`` order)."""
@@ -231,6 +240,7 @@ class Problem:
         from mujoco import sysid
 
         residuals, preds, records = [], [], []
+        single = np.reshape(x, (len(self.settings.parameters), -1)).shape[1] == 1  # one point, not a Jacobian
         for seq in self.sequences:
             try:
                 res, pred, rec = sysid.model_residual(
@@ -243,15 +253,23 @@ class Problem:
                     resample_true=False,  # controls are already on the physics clock (control_series)
                     return_pred_all=return_pred_all,
                 )
-            except ValueError as e:  # MuJoCo reset a diverging simulation: its clock went back to 0
-                if "strictly increasing" not in str(e):
+            except ValueError as e:  # UnstableError, or MuJoCo reset a diverging simulation (its clock went back)
+                if not isinstance(e, UnstableError) and "strictly increasing" not in str(e):
                     raise
+                size = self.sizes.get(id(seq))
+                if single and size is not None and not return_pred_all:
+                    # An optimizer's trial step into a diverging region: a large residual makes it reject the step
+                    residuals.append(np.full((size, 1) if np.ndim(x) == 2 else size, UNSTABLE_RESIDUAL))
+                    self.unstable_steps += 1
+                    continue
                 x2 = np.asarray(x, float).reshape(len(self.settings.parameters), -1)
                 span = {n: f"{row.min():.4g}..{row.max():.4g}" for n, row in zip(self.settings.parameters, x2)}
                 raise CalibrationError(
                     f"the trunk goes unstable at parameters in {span} (MuJoCo reset a diverging simulation); "
                     "narrow the bounds of the parameter that sits at an extreme"
                 ) from None
+            if single:
+                self.sizes[id(seq)] = res.size
             if np.ndim(x) == 2:  # (N_each, k * chunks), columns k-major: -> (chunks * N_each, k) as the optimizer reads
                 k, chunks = x.shape[1], len(seq.measured_rollout)
                 res = res.reshape(-1, k, chunks).transpose(2, 0, 1).reshape(-1, k)
@@ -272,9 +290,7 @@ class Problem:
             or (state is not None and not np.all(np.diff(state[:, 0]) > 0))  # MuJoCo reset a diverging step
         ):
             values = {n: float(pdict[n].value[0]) for n in self.settings.parameters}
-            raise CalibrationError(
-                f"the trunk goes unstable at {values}; narrow the bounds of the parameter that sits at an extreme"
-            )
+            raise UnstableError(f"the trunk goes unstable at {values}")
         window = sysid.signal_modifier.apply_time_window(measured, times[0], times[-1])
         pred = predicted.resample(window.times)
         # One mapping object for both (sysid compares them), one column per entry: marker_tip_x, ... (sysid's report
@@ -346,6 +362,7 @@ def problem(recordings, base: tm.TrunkParams, settings: Settings, start: tm.Trun
             )
         )
     prob.recordings = [r for rs in groups.values() for r in rs]  # the order of the residual's entries
+    prob.residual(pdict.as_vector(), pdict)  # the start must simulate (an unstable start is an error here)
     return prob
 
 
@@ -435,6 +452,8 @@ def calibrate(recordings, base: tm.TrunkParams | None = None, settings: Settings
         output=tee,
     )
     seconds = time.perf_counter() - t0
+    if prob.unstable_steps:
+        log(f"{prob.unstable_steps} trial step(s) made the trunk diverge and were rejected")
     text = "".join(tee.text)
     status = next((m for m in ("maximum iterations", "factorization failed") if m in text), "converged")
     x = opt_params.as_vector()
@@ -472,14 +491,3 @@ def calibrate(recordings, base: tm.TrunkParams | None = None, settings: Settings
         opt_params=opt_params,
         opt_result=opt_result,
     )
-
-
-def recordings_hash(recordings) -> str:
-    """Content hash of the recordings' names, clocks, commands and markers (the fitted trunk's provenance)."""
-    from jgrounding import io
-
-    parts = []
-    for r in sorted(recordings, key=lambda r: r.name):
-        parts += [r.name, *r.marker_names, np.ascontiguousarray(r.marker_s, np.float64).tobytes()]
-        parts += [np.ascontiguousarray(a, np.float64).tobytes() for a in (r.t, r.u, r.markers)]
-    return io.content_key("trunk recordings v1", *parts)

@@ -20,6 +20,17 @@ from jgrounding.sim import calibration
 from jgrounding.sim import model as tm
 
 
+def recordings_hash(recordings) -> str:
+    """Content hash of the recordings' names, clocks, commands and markers (the fitted trunk's provenance)."""
+    from jgrounding import io
+
+    parts = []
+    for r in sorted(recordings, key=lambda r: r.name):
+        parts += [r.name, *r.marker_names, np.ascontiguousarray(r.marker_s, np.float64).tobytes()]
+        parts += [np.ascontiguousarray(a, np.float64).tobytes() for a in (r.t, r.u, r.markers)]
+    return io.content_key("trunk recordings v1", *parts)
+
+
 def provenance(result: calibration.Result, recordings, folder: str) -> dict:
     """Everything the fitted trunk came from: recordings (folder, content hash, split), parameters with bounds and
     uncertainty, RMS before / after, MuJoCo's version."""
@@ -40,7 +51,7 @@ def provenance(result: calibration.Result, recordings, folder: str) -> dict:
         "mujoco": mujoco.__version__,
         "recordings": {
             "folder": str(folder),
-            "sha256": calibration.recordings_hash(recordings),
+            "sha256": recordings_hash(recordings),
             "fit": result.fit_names,
             "validation": result.validation_names,
         },
