@@ -21,46 +21,23 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import tomllib
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from jgrounding.config import NUM_TENDONS
 from jgrounding.sim import model as tm
-
-FIT_PARAMETERS = (
-    "stiffness_root",
-    "stiffness_tip",
-    "damping_root",
-    "damping_tip",
-    "tendon_force",
-    "slide_stiffness",
-    "density",
-    "delay",
+from jgrounding.sim.calibration_settings import (  # noqa: F401  (re-exported: the calibration's public surface)
+    DEFAULT_BOUNDS,
+    FIT_PARAMETERS,
+    CalibrationError,
+    Settings,
+    load_settings,
+    parse_bound,
 )
-# Box bounds of every fittable parameter: wide (a factor of about 5-10 around the hand-tuned trunk), physical
-# (positive), and inside the range where the chain stays stable at dt = 1/120 s.
-DEFAULT_BOUNDS = {
-    "stiffness_root": (1.0, 30.0),
-    "stiffness_tip": (0.05, 5.0),
-    "damping_root": (0.03, 3.0),
-    "damping_tip": (0.003, 0.3),
-    "tendon_force": (3.0, 60.0),
-    "slide_stiffness": (500.0, 20000.0),
-    "slide_damping": (1.0, 40.0),
-    "density": (100.0, 1500.0),
-    "hinge_armature": (0.0001, 0.005),
-    "slide_armature": (0.002, 0.05),
-    "delay": (0.0, 0.1),
-}
+
 MAX_ABS_POSITION = 3.0  # m: a simulated marker farther than this from the origin has blown up
 MARKER_PREFIX = "marker_"
-
-
-class CalibrationError(ValueError):
-    """Calibration cannot proceed or did not succeed; the message says why and what to change."""
 
 
 class UnstableError(CalibrationError):
@@ -68,80 +45,6 @@ class UnstableError(CalibrationError):
 
 
 UNSTABLE_RESIDUAL = 1.0  # m per residual entry for a trial step where the trunk diverges: the optimizer rejects it
-
-
-@dataclasses.dataclass(frozen=True)
-class Settings:
-    """What to fit and how: parameter names, their bounds, the split and the optimizer's budget."""
-
-    parameters: tuple[str, ...] = FIT_PARAMETERS
-    bounds: tuple[tuple[str, float, float], ...] = ()  # overrides of DEFAULT_BOUNDS: (name, low, high)
-    validation: float = 0.25  # fraction of the recordings held out (at least one when there are >= 2)
-    seed: int = 0  # of the split
-    max_iters: int = 40
-
-    def __post_init__(self):
-        unknown = [p for p in self.parameters if p not in DEFAULT_BOUNDS]
-        if unknown or not self.parameters or len(set(self.parameters)) != len(self.parameters):
-            raise CalibrationError(
-                f"parameters to fit {list(self.parameters)} must be distinct names of: {', '.join(DEFAULT_BOUNDS)}"
-            )
-        for name, low, high in self.bounds:
-            if name not in DEFAULT_BOUNDS:
-                raise CalibrationError(f"bounds for unknown parameter {name!r}; valid: {', '.join(DEFAULT_BOUNDS)}")
-            if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
-                raise CalibrationError(f"bounds of {name} must be finite with 0 <= low < high, got [{low}, {high}]")
-            if name != "delay" and name not in tm.NON_NEGATIVE and low <= 0:
-                raise CalibrationError(f"bounds of {name} must be positive (> 0), got [{low}, {high}]")
-        if not 0 <= self.validation < 1:
-            raise CalibrationError(f"validation fraction must be in [0, 1), got {self.validation}")
-        if self.max_iters < 1:
-            raise CalibrationError(f"max_iters must be >= 1, got {self.max_iters}")
-
-    def bound(self, name: str) -> tuple[float, float]:
-        found = [(lo, hi) for n, lo, hi in self.bounds if n == name]
-        return found[-1] if found else DEFAULT_BOUNDS[name]
-
-
-def parse_bound(text: str) -> tuple[str, float, float]:
-    """``"name=low,high"`` (the command line's ``--bound``) -> ``(name, low, high)``."""
-    name, sep, rest = text.partition("=")
-    parts = rest.split(",")
-    try:
-        if not sep or len(parts) != 2:
-            raise ValueError
-        return name.strip(), float(parts[0]), float(parts[1])
-    except ValueError:
-        raise CalibrationError(f"a bound is NAME=LOW,HIGH (e.g. tendon_force=5,40), got {text!r}") from None
-
-
-def load_settings(path: str | Path, **overrides) -> Settings:
-    """:class:`Settings` from a TOML file: ``parameters = [...]``, ``validation``, ``seed``, ``max_iters`` and a
-    ``[bounds]`` table of ``name = [low, high]``; ``overrides`` (not None) replace its values."""
-    path = Path(path)
-    if not path.is_file():
-        raise CalibrationError(f"calibration settings {path} not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise CalibrationError(f"{path}: not valid TOML: {e}") from None
-    valid = ("parameters", "bounds", "validation", "seed", "max_iters")
-    unknown = sorted(set(data) - set(valid))
-    if unknown:
-        raise CalibrationError(f"{path}: unknown settings {unknown}; valid: {', '.join(valid)}")
-    bounds = []
-    for name, pair in data.get("bounds", {}).items():
-        if not isinstance(pair, list) or len(pair) != 2:
-            raise CalibrationError(f"{path}: bounds.{name} must be [low, high], got {pair!r}")
-        bounds.append((name, float(pair[0]), float(pair[1])))
-    kwargs = {k: data[k] for k in ("validation", "seed", "max_iters") if k in data}
-    if "parameters" in data:
-        kwargs["parameters"] = tuple(data["parameters"])
-    kwargs["bounds"] = tuple(bounds)
-    for k, v in overrides.items():
-        if v is not None:
-            kwargs[k] = kwargs.get("bounds", ()) + tuple(v) if k == "bounds" else v
-    return Settings(**kwargs)
 
 
 def check_recordings(recordings, params: tm.TrunkParams) -> None:
@@ -220,13 +123,30 @@ class Problem:
     sizes: dict = dataclasses.field(default_factory=dict)  # residual length per sequence (penalty of a trial step)
     unstable_steps: int = 0  # trial steps rejected because the trunk diverged there
 
-    def trunk(self, values) -> tm.TrunkParams:
-        """The trunk at parameter vector ``values`` (in ``settings.parameters`` order)."""
-        return self.base.replace(**{n: float(v) for n, v in zip(self.settings.parameters, np.ravel(values))})
+    @property
+    def logs(self) -> np.ndarray:
+        """Which parameters the optimizer moves in log space: those with a positive lower bound (all but the delay,
+        by default). Stiffness, damping, force and density act as ratios and span decades: a step of the same size
+        means the same relative change for each."""
+        return np.array([self.settings.bound(n)[0] > 0 for n in self.settings.parameters])
+
+    def natural(self, x) -> np.ndarray:
+        """Optimizer vector ``x`` -> the parameters' values in their units."""
+        x = np.asarray(x, float).reshape(-1)
+        return np.where(self.logs, np.exp(x), x)
+
+    def to_x(self, trunk: tm.TrunkParams) -> np.ndarray:
+        """The optimizer vector of ``trunk``'s fitted parameters."""
+        v = np.array([getattr(trunk, n) for n in self.settings.parameters], float)
+        return np.where(self.logs, np.log(np.maximum(v, 1e-300)), v)
+
+    def trunk(self, x) -> tm.TrunkParams:
+        """The trunk at optimizer vector ``x`` (in ``settings.parameters`` order)."""
+        return self.base.replace(**{n: float(v) for n, v in zip(self.settings.parameters, self.natural(x))})
 
     def build_model(self, pdict, spec=None) -> mujoco.MjModel:
         del spec  # every candidate is rebuilt from its description (the passed spec is the start's)
-        values = [float(pdict[n].value[0]) for n in self.settings.parameters]
+        values = [float(pdict[k].value[0]) for k in pdict.keys()]
         first = self.recordings[0]
         return marker_spec(self.trunk(values), first.marker_names, first.marker_s, max_delay=self.max_delay).compile()
 
@@ -263,6 +183,7 @@ class Problem:
                     self.unstable_steps += 1
                     continue
                 x2 = np.asarray(x, float).reshape(len(self.settings.parameters), -1)
+                x2 = np.where(self.logs[:, None], np.exp(x2), x2)
                 span = {n: f"{row.min():.4g}..{row.max():.4g}" for n, row in zip(self.settings.parameters, x2)}
                 raise CalibrationError(
                     f"the trunk goes unstable at parameters in {span} (MuJoCo reset a diverging simulation); "
@@ -289,8 +210,8 @@ class Problem:
             or np.abs(predicted.data).max() > MAX_ABS_POSITION
             or (state is not None and not np.all(np.diff(state[:, 0]) > 0))  # MuJoCo reset a diverging step
         ):
-            values = {n: float(pdict[n].value[0]) for n in self.settings.parameters}
-            raise UnstableError(f"the trunk goes unstable at {values}")
+            values = self.natural([float(pdict[k].value[0]) for k in pdict.keys()])
+            raise UnstableError(f"the trunk goes unstable at {dict(zip(self.settings.parameters, values))}")
         window = sysid.signal_modifier.apply_time_window(measured, times[0], times[-1])
         pred = predicted.resample(window.times)
         # One mapping object for both (sysid compares them), one column per entry: marker_tip_x, ... (sysid's report
@@ -336,7 +257,10 @@ def problem(recordings, base: tm.TrunkParams, settings: Settings, start: tm.Trun
         if name == "delay" and value < 1.5 * tm.TIMESTEP < hi:
             # MuJoCo applies a delay shorter than one step as a whole step: flat below dt, so start above it
             value = 1.5 * tm.TIMESTEP
-        pdict.add(sysid.Parameter(name, nominal=value, min_value=lo, max_value=hi))
+        if lo > 0:  # log space (Problem.logs)
+            pdict.add(sysid.Parameter(f"log_{name}", np.log(value), np.log(lo), np.log(hi)))
+        else:
+            pdict.add(sysid.Parameter(name, nominal=value, min_value=lo, max_value=hi))
     prob = Problem(base=base, settings=settings, params=pdict, sequences=[], recordings=list(recordings))
     groups: dict[tuple, list] = {}
     for r in recordings:
@@ -366,9 +290,9 @@ def problem(recordings, base: tm.TrunkParams, settings: Settings, start: tm.Trun
     return prob
 
 
-def paths(prob: Problem, values) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
-    """``(name, times (T,), recorded (T, M, 3), simulated (T, M, 3))`` of every recording of ``prob`` at ``values``."""
-    x = np.asarray(values, float)
+def paths(prob: Problem, trunk: tm.TrunkParams) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
+    """``(name, times (T,), recorded (T, M, 3), simulated (T, M, 3))`` of every recording of ``prob`` on ``trunk``."""
+    x = prob.to_x(trunk)
     _, preds, records = prob.residual(x, prob.params, return_pred_all=True)
     m = len(prob.recordings[0].marker_names)
     return [
@@ -377,10 +301,10 @@ def paths(prob: Problem, values) -> list[tuple[str, np.ndarray, np.ndarray, np.n
     ]
 
 
-def rms(prob: Problem, values) -> tuple[float, float]:
+def rms(prob: Problem, trunk: tm.TrunkParams) -> tuple[float, float]:
     """Backbone RMS (over markers, time and recordings) and tip RMS (the marker farthest along), in metres."""
     tip = int(np.argmax(prob.recordings[0].marker_s))
-    d = [np.linalg.norm(rec - sim, axis=-1) for _, _, rec, sim in paths(prob, values)]
+    d = [np.linalg.norm(rec - sim, axis=-1) for _, _, rec, sim in paths(prob, trunk)]
     all_d = np.concatenate([x.ravel() for x in d])
     tip_d = np.concatenate([x[:, tip] for x in d])
     return float(np.sqrt(np.mean(all_d**2))), float(np.sqrt(np.mean(tip_d**2)))
@@ -442,24 +366,35 @@ def calibrate(recordings, base: tm.TrunkParams | None = None, settings: Settings
     x0 = initial.as_vector()
     tee = _Tee(log)
     t0 = time.perf_counter()
-    opt_params, opt_result = sysid.optimize(
-        initial_params=prob.params,
-        residual_fn=prob.residual,
-        optimizer="mujoco",
-        verbose=False,
-        max_iters=settings.max_iters,
-        x_scale="jac",
-        output=tee,
-    )
+    objective, status = [], "converged"
+    for round_ in range(1 + settings.restarts):  # noqa: B007  (round_ is read after the loop)
+        # Gauss-Newton's damping grows where the problem is ill-conditioned (stiffness, force, damping and mass nearly
+        # trade off); a fresh start from the point reached resets it. Restart while a round still gains > 10 %.
+        opt_params, opt_result = sysid.optimize(
+            initial_params=prob.params,
+            residual_fn=prob.residual,
+            optimizer="mujoco",
+            verbose=False,
+            max_iters=settings.max_iters,
+            x_scale="jac",
+            output=tee,
+        )
+        trace = [float(v) for v in opt_result.extras.get("objective", [])]
+        objective += trace
+        text = "".join(tee.text)
+        tee.text.clear()
+        status = next((m for m in ("maximum iterations", "factorization failed") if m in text), "converged")
+        if status != "converged" or not trace or trace[-1] > 0.9 * trace[0] or round_ == settings.restarts:
+            break
+        log(f"restart {round_ + 1} from the point reached (objective {trace[0]:.4g} -> {trace[-1]:.4g})")
+        prob.params = opt_params
     seconds = time.perf_counter() - t0
     if prob.unstable_steps:
         log(f"{prob.unstable_steps} trial step(s) made the trunk diverge and were rejected")
-    text = "".join(tee.text)
-    status = next((m for m in ("maximum iterations", "factorization failed") if m in text), "converged")
     x = opt_params.as_vector()
     fitted = prob.trunk(x)
     if status != "converged":
-        best = ", ".join(f"{n} = {v:.6g}" for n, v in zip(settings.parameters, x))
+        best = ", ".join(f"{n} = {getattr(fitted, n):.6g}" for n in settings.parameters)
         raise CalibrationError(
             f"no convergence within {settings.max_iters} iterations ({status}); nothing written. Raise --max-iters, "
             f"narrow the bounds, or start from the best point so far (a --config TOML with: {best})"
@@ -469,12 +404,15 @@ def calibrate(recordings, base: tm.TrunkParams | None = None, settings: Settings
     at = ["low" if v - a <= 1e-3 * w else "high" if b - v <= 1e-3 * w else "" for v, a, b, w in zip(x, lo, hi, width)]
     residuals, _, _ = prob.residual(x, opt_params)
     _, intervals = sysid.calculate_intervals(residuals, opt_result.jac)
-    rms_table = {"fit": {"before": rms(prob, x0), "after": rms(prob, x)}}
+    # A log-space interval h is the relative half-width: about value * h in the parameter's units.
+    intervals = np.where(prob.logs, prob.natural(x) * np.ravel(intervals), np.ravel(intervals))
+    start = prob.trunk(x0)
+    rms_table = {"fit": {"before": rms(prob, start), "after": rms(prob, fitted)}}
     if val:
         vprob = problem(val, base, settings)
-        rms_table["validation"] = {"before": rms(vprob, x0), "after": rms(vprob, x)}
+        rms_table["validation"] = {"before": rms(vprob, start), "after": rms(vprob, fitted)}
     return Result(
-        start=prob.trunk(x0),
+        start=start,
         fitted=fitted,
         settings=settings,
         fit_names=[r.name for r in fit],
@@ -482,9 +420,9 @@ def calibrate(recordings, base: tm.TrunkParams | None = None, settings: Settings
         interval={n: float(v) for n, v in zip(settings.parameters, np.ravel(intervals))},
         at_bound=dict(zip(settings.parameters, at)),
         rms=rms_table,
-        iterations=len(opt_result.extras.get("objective", [])) - 1,
+        iterations=len(objective) - 1 - round_,
         status=status,
-        objective=[float(v) for v in opt_result.extras.get("objective", [])],
+        objective=objective,
         seconds=seconds,
         problem=prob,
         initial_params=initial,

@@ -127,12 +127,10 @@ def figure(result: calibration.Result, recordings, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     settings = result.settings
-    x0 = [getattr(result.start, n) for n in settings.parameters]
-    x1 = [getattr(result.fitted, n) for n in settings.parameters]
     by_name = {r.name: r for r in recordings}
     recs = [by_name[n] for n in (result.validation_names + result.fit_names)[:2]]
     sub = calibration.problem(recs, result.start, settings)
-    before, after = calibration.paths(sub, x0), calibration.paths(sub, x1)
+    before, after = calibration.paths(sub, result.start), calibration.paths(sub, result.fitted)
     fig, axes = plt.subplots(len(recs), 2, figsize=(9, 4.2 * len(recs)), squeeze=False)
     for row, (b, a) in enumerate(zip(before, after)):
         name, _, recorded, sim0 = b

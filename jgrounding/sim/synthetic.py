@@ -11,6 +11,7 @@ import numpy as np
 
 from jgrounding.sim import calibration
 from jgrounding.sim import model as tm
+from jgrounding.sim.measures import MAX_TIP_SPEED
 
 
 def synthesize(
@@ -35,7 +36,18 @@ def synthesize(
     mujoco.mj_getState(model, data, state0, kind)
     control = np.repeat(u, SUBSTEPS, axis=1)
     datas = [mujoco.MjData(model) for _ in range(calibration.n_threads())]
-    _, sensordata = mj_rollout.rollout(model, datas, np.tile(state0, (len(u), 1)), control)
+    state, sensordata = mj_rollout.rollout(model, datas, np.tile(state0, (len(u), 1)), control)
+    # A diverging simulation (MuJoCo resets it: its clock goes back; or a marker moves faster than MAX_TIP_SPEED,
+    # the simulator's blow-up bound) is no recording of this trunk
+    speed = np.linalg.norm(np.diff(sensordata.reshape(len(u), control.shape[1], -1, 3), axis=1), axis=-1) / tm.TIMESTEP
+    bad = [
+        b
+        for b in range(len(u))
+        if not (np.all(np.diff(state[b, :, 0]) > 0) and np.all(np.isfinite(sensordata[b])))
+        or np.nan_to_num(speed[b], nan=np.inf).max() > MAX_TIP_SPEED
+    ]
+    if bad:
+        raise calibration.UnstableError(f"the trunk {params} diverges on command(s) {bad} of {len(u)}")
     rng = np.random.default_rng(seed)
     out = []
     m = len(marker_names)
