@@ -242,6 +242,9 @@ def run(cfg: Config, lib=None) -> AblationResult:
         ref_backbone, tol = trunk_eval.library_references(
             lib, ev_cfg.tau, engine=ev_cfg.engine, trunk=cfg.physics.trunk
         )
+        why = sim.trunk_mismatch(lib.meta.get("trunk"), cfg.physics.trunk)
+        if why:  # the physics columns measure the given trunk; the library's feasibility was another's
+            print(f"warning: library {lib.path} was {why}", flush=True)
         print(
             f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise "
             f"shape RMS, as tau = {ev_cfg.tau} is of its actuation RMS (within-tuple median "
