@@ -90,22 +90,31 @@ def stable_draw(rng, parameters, count: int, seed: int):
     raise RuntimeError("50 perturbed trunks in a row diverged: the bounds are too wide for the chain")
 
 
-def identifiability(trials: int, count: int) -> dict:
+def identifiability(trials: int, count: int, known: tuple[str, ...] = ()) -> dict:
+    """Trials of fitting every default parameter but ``known`` (set to the truth, as a lab that weighed its trunk
+    sets the density) on recordings of a perturbed trunk. Besides each parameter's error, the error of its ratio to
+    the density (for ``known=()``): motion alone determines the ratios, the common scale only weakly."""
     rows = []
+    fitted_names = tuple(n for n in cal.FIT_PARAMETERS if n not in known)
     for trial in range(trials):
         rng = np.random.default_rng(trial)
         truth, recs, rejected = stable_draw(rng, cal.FIT_PARAMETERS, count, seed=100 + trial)
         print(
             f"identifiability trial {trial + 1}/{trials}: {count} recordings ({rejected} diverging draws)", flush=True
         )
-        res = cal.calibrate(recs, settings=cal.Settings(validation=0.25), log=lambda s: print("  " + s, flush=True))
-        err = {n: getattr(res.fitted, n) / getattr(truth, n) - 1 for n in cal.FIT_PARAMETERS}
+        base = tm.TrunkParams().replace(**{n: getattr(truth, n) for n in known})
+        settings = cal.Settings(parameters=fitted_names, validation=0.25)
+        res = cal.calibrate(recs, base, settings, log=lambda s: print("  " + s, flush=True))
+        err = {n: getattr(res.fitted, n) / getattr(truth, n) - 1 for n in fitted_names}
+        scale = 1 + err.get("density", 0.0)
+        ratio = {n: (1 + e) / scale - 1 for n, e in err.items() if n not in ("density", "delay")}
         rows.append(
             {
                 "trial": trial,
-                "truth": {n: getattr(truth, n) for n in cal.FIT_PARAMETERS},
-                "fitted": {n: getattr(res.fitted, n) for n in cal.FIT_PARAMETERS},
+                "truth": {n: getattr(truth, n) for n in fitted_names},
+                "fitted": {n: getattr(res.fitted, n) for n in fitted_names},
                 "rel_error": err,
+                "ratio_error": ratio,
                 "rms_m": {k: d["after"][0] for k, d in res.rms.items()},
                 "start_rms_m": res.rms["fit"]["before"][0],
                 "iterations": res.iterations,
@@ -115,8 +124,11 @@ def identifiability(trials: int, count: int) -> dict:
         )
     worst = max(abs(e) for r in rows for e in r["rel_error"].values())
     worst_rms = max(v for r in rows for v in r["rms_m"].values())
+    flag = f" --known {','.join(known)}" if known else ""
     return {
-        "command": f"python -m experiments.trunk_calibration --trials {trials} --count {count}",
+        "command": f"python -m experiments.trunk_calibration --trials {trials} --count {count}{flag}",
+        "known": list(known),
+        "worst_ratio_error": max((abs(e) for r in rows for e in r["ratio_error"].values()), default=0.0),
         "rows": rows,
         "worst_rel_error": worst,
         "worst_rms_m": worst_rms,
@@ -178,36 +190,44 @@ def against_reference(folder: Path, fit_count: int | None, max_iters: int) -> di
     }
 
 
+def _identifiability(ident: dict) -> list[str]:
+    out = [
+        f"`{ident['command']}`: recordings of our own MuJoCo trunk with each fitted parameter moved 5-20 % inside "
+        f"its bounds, fitted from the shipped values. Goal: every parameter within {GOAL_REL:.0%}, backbone RMS within "
+        f"{1000 * GOAL_RMS:.0f} mm. Worst relative error {100 * ident['worst_rel_error']:.3f} %, worst backbone RMS "
+        f"{1000 * ident['worst_rms_m']:.4f} mm: **{'met' if ident['met'] else 'not met'}**.",
+    ]
+    if not ident.get("known"):
+        out[0] += (
+            f" Ratios of the stiffnesses, dampings, tendon force and slide stiffness to the density (what the motion "
+            f"determines; a common scale of all of them changes it only through the joints' armature and the slide "
+            f"damping) are within {100 * ident.get('worst_ratio_error', float('nan')):.3f} %."
+        )
+    out += ["", "| trial | parameter | truth | fitted | error |", "|---|---|---|---|---|"]
+    for r in ident["rows"]:
+        for n in r["truth"]:
+            out.append(
+                f"| {r['trial']} | {n} | {r['truth'][n]:.5g} | {r['fitted'][n]:.5g} | {100 * r['rel_error'][n]:+.3f} % |"
+            )
+    out += ["", "| trial | start RMS (mm) | fit RMS (mm) | validation RMS (mm) | iterations | seconds |"]
+    out += ["|---|---|---|---|---|---|"]
+    for r in ident["rows"]:
+        val = r["rms_m"].get("validation")
+        out.append(
+            f"| {r['trial']} | {1000 * r['start_rms_m']:.2f} | {1000 * r['rms_m']['fit']:.4f} | "
+            f"{'-' if val is None else f'{1000 * val:.4f}'} | {r['iterations']} | {r['seconds']:.1f} |"
+        )
+    return out
+
+
 def markdown(sections: dict) -> str:
     out = ["# Trunk calibration", "", "Written by `python -m experiments.trunk_calibration` (docs/trunk.md).", ""]
-    ident = sections.get("identifiability")
     out += ["## Identifiability", ""]
-    if ident:
-        out += [
-            f"`{ident['command']}`: recordings of our own MuJoCo trunk with each fitted parameter moved 5-20 % inside "
-            f"its bounds, fitted from the shipped values. Goal: every parameter within {GOAL_REL:.0%}, backbone "
-            f"RMS within {1000 * GOAL_RMS:.0f} mm. Worst relative error {100 * ident['worst_rel_error']:.3f} %, "
-            f"worst backbone RMS {1000 * ident['worst_rms_m']:.4f} mm: **{'met' if ident['met'] else 'not met'}**.",
-            "",
-            "| trial | parameter | truth | fitted | error |",
-            "|---|---|---|---|---|",
-        ]
-        for r in ident["rows"]:
-            for n in r["truth"]:
-                out.append(
-                    f"| {r['trial']} | {n} | {r['truth'][n]:.5g} | {r['fitted'][n]:.5g} | "
-                    f"{100 * r['rel_error'][n]:+.3f} % |"
-                )
-        out += ["", "| trial | start RMS (mm) | fit RMS (mm) | validation RMS (mm) | iterations | seconds |"]
-        out += ["|---|---|---|---|---|---|"]
-        for r in ident["rows"]:
-            val = r["rms_m"].get("validation")
-            out.append(
-                f"| {r['trial']} | {1000 * r['start_rms_m']:.2f} | {1000 * r['rms_m']['fit']:.4f} | "
-                f"{'-' if val is None else f'{1000 * val:.4f}'} | {r['iterations']} | {r['seconds']:.1f} |"
-            )
-    else:
-        out.append("Not run yet: `python -m experiments.trunk_calibration`.")
+    ident, known = sections.get("identifiability"), sections.get("identifiability_known")
+    out += _identifiability(ident) if ident else ["Not run yet: `python -m experiments.trunk_calibration`."]
+    if known:
+        out += ["", f"### With {', '.join(known['known'])} known (weighed), the rest fitted", ""]
+        out += _identifiability(known)
     bench = sections.get("benchmark")
     out += ["", "## Time", ""]
     if bench:
@@ -251,6 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--count", type=int, default=8, help="recordings per identifiability trial (default 8)")
     p.add_argument("--quick", action="store_true", help="one identifiability trial on 4 recordings")
     p.add_argument("--no-identifiability", action="store_true", help="keep the earlier identifiability section")
+    p.add_argument("--known", help="identifiability with these parameters known (e.g. density: a weighed trunk)")
     p.add_argument("--benchmark", action="store_true", help="time 10 parameters on 64 recordings")
     p.add_argument("--reference", type=Path, help="the reference's recordings (train/ and evaluation/ inside)")
     p.add_argument("--fit-count", type=int, help="fit on this many of the reference's training recordings")
@@ -265,7 +286,11 @@ def main(argv: list[str] | None = None) -> int:
     sections = json.loads(store.read_text()) if store.exists() else {}
     if not args.no_identifiability:
         trials, count = (1, 4) if args.quick else (args.trials, args.count)
-        sections["identifiability"] = identifiability(trials, count)
+        if args.known:
+            known = tuple(n.strip() for n in args.known.split(",") if n.strip())
+            sections["identifiability_known"] = identifiability(trials, count, known)
+        else:
+            sections["identifiability"] = identifiability(trials, count)
     if args.benchmark:
         sections["benchmark"] = benchmark()
     if args.reference is not None:
