@@ -9,7 +9,7 @@ earlier run wrote (each section names the command that made it):
 - **Time** (``--benchmark``): one calibration of 10 parameters on 64 recordings (5 s each, 2 markers at 120 Hz),
   timed, with this machine's CPU model, core count and load average.
 - **Against the reference** (``--reference FOLDER``): FOLDER is the physical reference's recordings
-  (``python -m experiments.trunk_reference``: ``train/`` and ``evaluation/`` recordings folders). The trunk is
+  (the Cosserat-rod reference's output: ``train/`` and ``evaluation/`` recordings folders). The trunk is
   fitted on the training commands' recordings and judged on the evaluation set's, never fitted on: mean backbone
   RMS of the fitted and of the hand-tuned trunk (goals: <= 20 mm, and <= 1/3 of the hand-tuned trunk's).
 
@@ -260,7 +260,7 @@ def markdown(sections: dict) -> str:
     else:
         out.append(
             "Not run yet: `python -m experiments.trunk_calibration --reference runs/trunk_reference` once the "
-            "reference's recordings exist (`python -m experiments.trunk_reference`)."
+            "Cosserat-rod reference's recordings (train/ and evaluation/ folders) exist."
         )
     return "\n".join(out) + "\n"
 
@@ -280,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.reference is not None and not (args.reference / "train").is_dir():
         p.error(
-            f"--reference {args.reference}: no train/ recordings folder inside (python -m experiments.trunk_reference)"
+            f"--reference {args.reference}: no train/ recordings folder inside (the reference's output folder holds train/ and evaluation/)"
         )
     store = args.out.with_suffix(".json")
     sections = json.loads(store.read_text()) if store.exists() else {}

@@ -7,7 +7,11 @@ with finite-difference Jacobians, each evaluation one batched ``mujoco.rollout``
 perturbed parameter vector. The residual is what a motion-capture system sees: the recorded marker positions minus
 the simulated ones, in metres, at the recorded times. The marker at arc length ``s`` is the point of our chain at
 that arc length along the undeformed backbone (a site on the segment that holds it, read by a ``framepos``
-sensor), so the objective is the backbone's squared error summed over markers and time.
+sensor), so the objective is the backbone's squared error summed over markers and time. Parameters with a positive
+lower bound move in log space (equal steps are equal relative changes); an optimizer's trial step where the chain
+diverges gets a large residual, so it is rejected; and the fit restarts from the point it reached while a round
+still gains more than 10 % (Gauss-Newton's damping grows along the nearly flat direction where stiffness, force,
+damping and mass scale together).
 
 The command delay is MuJoCo's actuator delay (each motor applies the command of ``delay`` seconds ago; the
 history is at rest before time 0), so a fitted trunk file simulates its delay by itself.
