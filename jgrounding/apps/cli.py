@@ -24,6 +24,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from jgrounding.vocabulary import INTENSITIES, INTENTS
@@ -213,15 +214,22 @@ def run(args: argparse.Namespace) -> int:
                 hold_still=False,
             )
     t0 = time.perf_counter()
-    outcome = responder.act(
-        jax.random.key(args.seed),
-        decision,
-        args.samples,
-        current=args.current,
-        screen=args.screen,
-        sampler=args.sampler,
-        steps=args.steps,
-    )
+    with warnings.catch_warnings(record=True) as caught:  # e.g. screening on another trunk than the library's
+        warnings.simplefilter("always")
+        outcome = responder.act(
+            jax.random.key(args.seed),
+            decision,
+            args.samples,
+            current=args.current,
+            screen=args.screen,
+            sampler=args.sampler,
+            steps=args.steps,
+        )
+    for w in caught:
+        if "screened on" in str(w.message):  # jgrounding.sim.trunk_mismatch: said like the CLI's other warnings
+            say("warning", f"warning: {w.message}", reason=str(w.message), hold_still=False)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     hold = decision.hold
     u = np.asarray(outcome.u).reshape((-1,) + np.shape(outcome.u)[-2:])
     if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give

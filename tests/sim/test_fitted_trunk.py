@@ -97,6 +97,7 @@ def test_screened_sampling_the_cli_and_the_server_pass_the_trunk(fitted, tmp_pat
     out = tmp_path / "out"
     rc = cli.main(["--intent", "greeting", "--intensity", "moderate", "--screen", "--trunk", fitted, "--out", str(out)])
     assert rc == 0 and (out / "posture.png").exists()
+    assert "warning: checkpoint" in capsys.readouterr().out  # the trunk mismatch, said by the CLI
     with pytest.raises(SystemExit):
         cli.main(["--intent", "greeting", "--intensity", "moderate", "--trunk", str(tmp_path / "no.xml")])
     assert "--trunk" in capsys.readouterr().err
