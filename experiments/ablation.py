@@ -118,7 +118,12 @@ def run(cfg: Config, lib=None) -> AblationResult:
     t_lib = time.perf_counter()  # the library simulated once: held-out references + the shape tolerance
     ref_backbone, tol = None, None
     if simulate:
-        ref_backbone, tol = trunk_eval.library_references(lib, ev_cfg.tau, engine=ev_cfg.engine)
+        ref_backbone, tol = trunk_eval.library_references(
+            lib, ev_cfg.tau, engine=ev_cfg.engine, trunk=cfg.physics.trunk
+        )
+        why = sim.trunk_mismatch(lib.meta.get("trunk"), cfg.physics.trunk)
+        if why:  # the physics columns measure the given trunk; the library's feasibility was another's
+            print(f"warning: library {lib.path} was {why}", flush=True)
         print(
             f"shape tolerance {tol.tau_m:.3f} m: the {tol.percentile:.1f}th percentile of the library's pairwise "
             f"shape RMS, as tau = {ev_cfg.tau} is of its actuation RMS (within-tuple median "
@@ -174,7 +179,11 @@ def run(cfg: Config, lib=None) -> AblationResult:
             distribution_row(u, lib.heldout.intent, lib.heldout.intensity, ev, radius) if ev is not None else None
         )
         timing["distribution_s"] += time.perf_counter() - t_dist
-        phys = physics(u, ref_backbone, tol, ev_cfg.engine, ev_cfg.physics_samples) if simulate else NO_PHYSICS
+        phys = (
+            physics(u, ref_backbone, tol, ev_cfg.engine, ev_cfg.physics_samples, cfg.physics.trunk)
+            if simulate
+            else NO_PHYSICS
+        )
         physics_s += phys.seconds
         samples[method] = u[0]  # seed 0, for the figures
         succ = (r[:, :, 0] <= ev_cfg.tau).mean(axis=1)  # one sample per held-out tuple (paper protocol)
@@ -225,7 +234,7 @@ def run(cfg: Config, lib=None) -> AblationResult:
             for name, x in distribution.reference_samples(lib, k=ev_cfg.num_samples).items()
         }
         timing["distribution_references_s"] = time.perf_counter() - t_ref
-    refs, ref_phys = references(lib, ev_cfg, ref_backbone, tol, simulate)
+    refs, ref_phys = references(lib, ev_cfg, ref_backbone, tol, simulate, cfg.physics.trunk)
     physics_s += sum(p.seconds for p in ref_phys.values())
     timing["physics_s"] = physics_s
     timing["run_s"] = time.perf_counter() - t_run

@@ -94,14 +94,14 @@ def coverage(u, lib) -> np.ndarray:
     ).mean(axis=1)
 
 
-def physics(u, ref, tol, engine="auto", per_tuple: int | None = None) -> Physics:
+def physics(u, ref, tol, engine="auto", per_tuple: int | None = None, trunk: str | None = None) -> Physics:
     """Samples ``u (S, 64, K, T, 4)`` (S seeds) simulated against the held-out references' simulated
     backbones ``ref (64, T, 11, 3)``: shape RMS, shape success (``<= tol.tau_m``), shape diversity and
     feasibility over the simulated samples, each mean ± std over seeds; plus the rollouts' count and seconds.
     ``per_tuple``: simulate the first that many of each tuple's K samples (i.i.d. draws: a random subset;
-    ``EvalConfig.physics_samples``); None: all."""
+    ``EvalConfig.physics_samples``); None: all. ``trunk``: the MJCF simulated (``PhysicsConfig.trunk``)."""
     u = np.asarray(u)[:, :, :per_tuple] if per_tuple else u
-    res = [trunk_eval.simulate_samples(x, ref, tol.tau_m, engine=engine) for x in u]
+    res = [trunk_eval.simulate_samples(x, ref, tol.tau_m, engine=engine, trunk=trunk) for x in u]
     return Physics(
         shape_rms_m=mean_std([r["shape_rms"].mean() for r in res]),
         shape_success=mean_std([r["shape_success"].mean() for r in res]),
@@ -114,7 +114,9 @@ def physics(u, ref, tol, engine="auto", per_tuple: int | None = None) -> Physics
     )
 
 
-def references(lib, ev_cfg, ref_backbone, tol, simulate: bool) -> tuple[dict[str, Reference], dict[str, Physics]]:
+def references(
+    lib, ev_cfg, ref_backbone, tol, simulate: bool, trunk: str | None = None
+) -> tuple[dict[str, Reference], dict[str, Physics]]:
     """The paper-protocol references (replays over draws, the tuple mean, the library's brackets as expected
     values) and the physics of the replayed ones; a partial (imported) library lacks some."""
     refs = {
@@ -123,7 +125,7 @@ def references(lib, ev_cfg, ref_backbone, tol, simulate: bool) -> tuple[dict[str
     }
     rng = np.random.default_rng(0)
     ref_phys = {
-        name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, ev_cfg.engine)
+        name: physics(metrics.replay(lib, name, rng)[None, :, None], ref_backbone, tol, ev_cfg.engine, trunk=trunk)
         if simulate
         else NO_PHYSICS
         for name in ("oracle", "wrong_intent_any_intensity")
@@ -135,7 +137,7 @@ def references(lib, ev_cfg, ref_backbone, tol, simulate: bool) -> tuple[dict[str
         success={float(t): (float((r_mean <= t).mean()), 0.0) for t in metrics.TAUS}, rms=(float(r_mean.mean()), 0.0)
     )
     ref_phys["tuple_mean"] = (
-        physics(mean_u[None, :, None], ref_backbone, tol, ev_cfg.engine) if simulate else NO_PHYSICS
+        physics(mean_u[None, :, None], ref_backbone, tol, ev_cfg.engine, trunk=trunk) if simulate else NO_PHYSICS
     )
     # Brackets of the benchmark (library.brackets): expected values over the library, no sampling.
     complete = len(lib.heldout) == 64 and len(lib.train) == 192  # an imported library may lack tuples

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from jgrounding import sim
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim import reference
 from jgrounding.sim.measures import NUM_POINTS, SUBSTEPS, finish_rollout
 from jgrounding.vocabulary import INTENSITIES, INTENTS

@@ -6,7 +6,7 @@ In the spirit of MuJoCo Playground's ``default_config()`` and big_vision's confi
 - :class:`TrainConfig`: AdamW, batch, steps, and the generator options (EMA, flow-time
   distribution, condition dropout for classifier-free guidance), each off by default.
 - :class:`SampleConfig`: sampler, steps S, guidance weight w.
-- :class:`PhysicsConfig`: the physics-aware fine-tuning of the ablation's extra row.
+- :class:`PhysicsConfig`: the physics-aware fine-tuning of the ablation's extra row, and the trunk simulated.
 - :class:`EvalConfig`: what the ablation evaluates (seeds, K, tau, rows, engine, library, output).
 - :class:`Config`: all of them; :data:`CONFIGS` names entries (``paper`` = Table I, ``quick`` = the smoke
   run), each a function whose docstring opens with the command it serves and the result it should give;
@@ -139,7 +139,8 @@ class SampleConfig:
 
 @dataclasses.dataclass(frozen=True)
 class PhysicsConfig:
-    """Physics-aware fine-tuning (the ablation's extra row, :mod:`jgrounding.training.physics`)."""
+    """Physics-aware fine-tuning (the ablation's extra row, :mod:`jgrounding.training.physics`) and the trunk that
+    every simulation of a run uses."""
 
     rounds: int = 2  # generate -> simulate -> fine-tune rounds
     candidates: int = 16  # samples per tuple per round (64 tuples: 1024 rollouts per seed and round)
@@ -147,8 +148,13 @@ class PhysicsConfig:
     margin: float = 0.2  # keep candidates with feasibility margin >= this (0 = just feasible)
     learning_rate: float = 3e-4  # below Table I's 1e-3: fine-tuning, not training (1e-3 drifted: RMS up)
     engine: str = "auto"  # jgrounding.sim.rollout engine
+    # The trunk every simulation of a run uses (rollouts, screening, the physics columns, the render): an MJCF path
+    # (a fitted trunk from `python -m jgrounding.sim calibrate`), None = the shipped, hand-tuned trunk.
+    trunk: str | None = None
 
     def __post_init__(self):
+        if self.trunk is not None and (not isinstance(self.trunk, str) or not self.trunk.strip()):
+            raise ValueError(f"PhysicsConfig.trunk must be a path to an MJCF file or None, got {self.trunk!r}")
         for name in ("rounds", "candidates", "steps"):
             _integer("PhysicsConfig", name, getattr(self, name), 1)
         _real("PhysicsConfig", "margin", self.margin, 0.0, 1e3)

@@ -29,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--checkpoint", default=None, help="a checkpoint directory (default: the shipped models)")
     p.add_argument("--allow-library-mismatch", action="store_true", help="serve a checkpoint of another library")
+    p.add_argument("--trunk", default=None, help="the trunk MJCF simulated (a fitted one; default: the shipped trunk)")
     p.add_argument("--max-text", type=int, default=d.max_text, help="characters per text (%(default)s)")
     p.add_argument("--max-samples", type=int, default=d.max_samples, help="num_samples per request (%(default)s)")
     p.add_argument("--rate", type=float, default=d.rate, help="requests/s per connection (%(default)s)")
@@ -67,8 +68,9 @@ def main(argv: list[str] | None = None) -> int:
             limits=limits,
             allow_library_mismatch=args.allow_library_mismatch,
             log_level=args.log_level,
+            trunk=args.trunk,
         )
-    except ValueError as e:
+    except (ValueError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -20,9 +20,10 @@ def main(argv=None) -> int:
         "--version", type=int, default=library.designs.DEFAULT_VERSION, help="the design (3, 4 or 5; see designs.py)"
     )
     p.add_argument("--no-card", action="store_true", help="skip the Markdown card and figures")
+    p.add_argument("--trunk", help="screen on this trunk MJCF (a fitted one); default: the shipped trunk")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    arrays, card = library.build(library.BuildConfig(seed=args.seed, version=args.version))
+    arrays, card = library.build(library.BuildConfig(seed=args.seed, version=args.version), trunk=args.trunk)
     path = library.save(arrays, card, args.out)
     print(
         f"wrote {path} ({card['num_train']} train / {card['num_heldout']} held-out; "

@@ -28,6 +28,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from jgrounding.vocabulary import INTENSITIES, INTENTS
@@ -136,6 +137,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="simulate candidates on the trunk and keep only feasible ones (reports the rejected)",
     )
     p.add_argument(
+        "--trunk",
+        default=None,
+        help="the trunk MJCF to screen on and render (a fitted one, python -m jgrounding.sim calibrate; "
+        "default: the shipped trunk)",
+    )
+    p.add_argument(
         "--force",
         action="store_true",
         help="drive the grounded tuple even when the text is held (no motion called for, or unsure which motion)",
@@ -200,7 +207,9 @@ def run(args: argparse.Namespace) -> int:
             f"--units lab needs a checkpoint trained on an imported library (its card holds the limits); "
             f"--checkpoint {args.checkpoint} has none"
         )
-    responder = Responder(args.checkpoint, allow_library_mismatch=args.allow_library_mismatch, backend=args.backend)
+    responder = Responder(
+        args.checkpoint, allow_library_mismatch=args.allow_library_mismatch, backend=args.backend, trunk=args.trunk
+    )
     t0 = time.perf_counter()
     decision = responder.decide(
         args.text if args.intent is None else None, intent=args.intent, intensity=args.intensity, force=args.force
@@ -242,15 +251,22 @@ def run(args: argparse.Namespace) -> int:
                 hold_still=False,
             )
     t0 = time.perf_counter()
-    outcome = responder.act(
-        jax.random.key(args.seed),
-        decision,
-        args.samples,
-        current=args.current,
-        screen=args.screen,
-        sampler=args.sampler,
-        steps=args.steps,
-    )
+    with warnings.catch_warnings(record=True) as caught:  # e.g. screening on another trunk than the library's
+        warnings.simplefilter("always")
+        outcome = responder.act(
+            jax.random.key(args.seed),
+            decision,
+            args.samples,
+            current=args.current,
+            screen=args.screen,
+            sampler=args.sampler,
+            steps=args.steps,
+        )
+    for w in caught:
+        if "screened on" in str(w.message):  # jgrounding.sim.trunk_mismatch: said like the CLI's other warnings
+            say("warning", f"warning: {w.message}", reason=str(w.message), hold_still=False)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     hold = decision.hold
     u = np.asarray(outcome.u).reshape((-1,) + np.shape(outcome.u)[-2:])
     if hold:  # the neutral behaviour: the current command, held, in the shape the generator would give
@@ -322,9 +338,15 @@ def run(args: argparse.Namespace) -> int:
         from jgrounding.sim import render
 
         t0 = time.perf_counter()
-        files["posture"] = str(render.render_posture(u[0], out / "posture.png", title=f"{title}, sample 0"))
-        files["keyframes"] = str(render.render_keyframes(u[0], out / "keyframes.png", title=f"{title}, sample 0"))
-        files["motion"] = str(render.render_motion(u[0], out / "motion.gif", title=f"{title}, sample 0"))
+        files["posture"] = str(
+            render.render_posture(u[0], out / "posture.png", title=f"{title}, sample 0", trunk=args.trunk)
+        )
+        files["keyframes"] = str(
+            render.render_keyframes(u[0], out / "keyframes.png", title=f"{title}, sample 0", trunk=args.trunk)
+        )
+        files["motion"] = str(
+            render.render_motion(u[0], out / "motion.gif", title=f"{title}, sample 0", trunk=args.trunk)
+        )
         say("render", f"rendered motion [{time.perf_counter() - t0:.1f} s]")
     for name, path in files.items():
         say("file", f"  {name:9s} {path}", kind=name, path=path)
@@ -353,6 +375,13 @@ def main(argv: list[str] | None = None) -> int:
         Path(args.out).mkdir(parents=True, exist_ok=True)
     except (OSError, ValueError) as e:  # a file in the way, no permission, a NUL in the name, ...
         parser.error(f"--out {args.out!r} cannot be used as the output folder ({e})")
+    if args.trunk is not None:
+        from jgrounding import sim
+
+        try:
+            args.trunk = sim.resolve_trunk(args.trunk)
+        except FileNotFoundError as e:
+            parser.error(f"--trunk: {e}")
     try:
         return run(args)
     except (ValueError, TypeError) as e:

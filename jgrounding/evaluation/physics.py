@@ -101,41 +101,48 @@ def calibrate(
     )
 
 
-def library_references(lib, tau_rms: float, *, engine: str = "auto") -> tuple[np.ndarray, ShapeTolerance]:
+def library_references(
+    lib, tau_rms: float, *, engine: str = "auto", trunk: str | None = None
+) -> tuple[np.ndarray, ShapeTolerance]:
     """Simulate the whole library once: the held-out references' backbones and the shape tolerance.
 
     Args:
-      lib: a :class:`jgrounding.library.Library`; tau_rms: the actuation tolerance (0.35).
+      lib: a :class:`jgrounding.library.Library`; tau_rms: the actuation tolerance (0.35); trunk: the MJCF to
+      simulate on (None: the shipped trunk; ``PhysicsConfig.trunk``).
     Returns:
       ``(reference backbones (N_heldout, T, P, 3), ShapeTolerance)`` from :func:`calibrate` over train + held-out.
     """
     u = np.concatenate([lib.train.u, lib.heldout.u])
-    backbone = sim.rollout(u, engine=engine).backbone
+    backbone = sim.rollout(u, engine=engine, trunk=trunk).backbone
     intent = np.concatenate([lib.train.intent, lib.heldout.intent])
     intensity = np.concatenate([lib.train.intensity, lib.heldout.intensity])
     return backbone[len(lib.train) :], calibrate(u, backbone, intent, intensity, tau_rms)
 
 
-def simulate_samples(u: np.ndarray, reference: np.ndarray, tau_m: float, *, engine: str = "auto") -> dict:
+def simulate_samples(
+    u: np.ndarray, reference: np.ndarray, tau_m: float, *, engine: str = "auto", trunk: str | None = None
+) -> dict:
     """Simulate every sample ``u (N, K, T, 4)`` and score it against ``reference (N, T, P, 3)``.
 
     Returns a dict: ``shape_rms (N, K)`` metres, ``shape_success (N, K)`` bool (``<= tau_m``),
     ``feasible (N, K)`` bool, ``margin (N, K)`` (:func:`jgrounding.sim.feasibility_margin`),
     ``diversity (N,)`` mean pairwise shape RMS of each tuple's K samples, ``simulated`` (distinct
-    trajectories rolled out), ``seconds`` (wall time of the rollouts) and ``engine`` (the one used).
+    trajectories rolled out), ``seconds`` (wall time of the rollouts) and ``engine`` (the one used), on ``trunk``
+    (None: the shipped trunk).
     """
     n, k = u.shape[:2]
     flat = np.ascontiguousarray(u.reshape(n * k, *u.shape[2:]), dtype=np.float32)
     # Identical samples (a deterministic generator's K copies) are simulated once.
     uniq, inverse = np.unique(flat.reshape(n * k, -1), axis=0, return_inverse=True)
     uniq = uniq.reshape(-1, *u.shape[2:])
-    engine = sim.resolve_engine(engine)
+    trunk = sim.resolve_trunk(trunk)
+    engine = sim.resolve_engine(engine, trunk)
     backbone = np.empty((len(uniq),) + reference.shape[1:], np.float32)
     margin = np.empty(len(uniq))
     feasible = np.empty(len(uniq), bool)
     t0 = time.perf_counter()
     for i in range(0, len(uniq), CHUNK):
-        r = sim.rollout(uniq[i : i + CHUNK], engine=engine)
+        r = sim.rollout(uniq[i : i + CHUNK], engine=engine, trunk=trunk)
         backbone[i : i + CHUNK] = r.backbone
         margin[i : i + CHUNK] = sim.feasibility_margin(r)
         feasible[i : i + CHUNK] = sim.feasible(r)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jgrounding import safety
+from jgrounding import safety, sim
 from jgrounding.actuation import splines
 from jgrounding.config import NUM_CONTROLS
 from jgrounding.io import asset  # the one resolver of the package's run-time files
@@ -127,11 +127,12 @@ def reduce_candidates(
     return controls, raw, np.asarray(safety.make_safe(raw))
 
 
-def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bool):
+def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bool, trunk: str | None = None):
     """Screen candidates until every (intent, intensity, variant) has its planned count.
 
     ``plan``: ``(m, z) -> variants`` of the realizations wanted. Returns ``(found, tried, accepted,
-    per_check)`` with ``found[(m, z, v)]`` a list of ``(controls, u)`` in acceptance order.
+    per_check)`` with ``found[(m, z, v)]`` a list of ``(controls, u)`` in acceptance order. Simulated on ``trunk``
+    (None: the shipped trunk).
     """
     from tqdm import tqdm
 
@@ -158,7 +159,7 @@ def _search(plan: dict, seed: list, config: BuildConfig, desc: str, progress: bo
         )
         keys = np.repeat(np.array(todo), per_round, axis=0)
         controls, raw, u = reduce_candidates(cand, config.num_controls, primitives.RETURNS_MASK[keys[:, 0]])
-        checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1])
+        checks = screening.screen(raw, u, keys[:, 0], intensity=keys[:, 1], trunk=trunk)
         for c in screening.CHECKS:
             per_check[c] += int(checks[c].sum())
         for i, key in enumerate(map(tuple, keys)):
@@ -194,8 +195,9 @@ def fresh_realizations(
     return out
 
 
-def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[dict, dict]:
-    """Generate, reduce and screen; returns (arrays, card). Deterministic in ``config.seed``."""
+def build(config: BuildConfig = BuildConfig(), progress: bool = True, trunk: str | None = None) -> tuple[dict, dict]:
+    """Generate, reduce and screen on ``trunk`` (None: the shipped trunk); returns (arrays, card). Deterministic in
+    ``config.seed``. The card records a trunk of its own (path and sha256) under ``trunk``."""
     keep = {k: [] for k in ("u", "controls", "intent", "intensity", "realization", "variant", "texts")}
     design = designs.get(config.version)
     # One-to-many: how a tuple's realizations divide among its variants (designs.Design.train_variants).
@@ -204,7 +206,7 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         for m in range(NUM_INTENTS)
         for z in range(NUM_INTENSITIES)
     }
-    found, tried, accepted, per_check = _search(plan, [config.seed], config, "screening rounds", progress)
+    found, tried, accepted, per_check = _search(plan, [config.seed], config, "screening rounds", progress, trunk)
     split_rng = np.random.default_rng([config.seed, 999])
     heldout = []
     for m in range(NUM_INTENTS):
@@ -234,7 +236,7 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         for z in range(NUM_INTENSITIES)
     }
     eval_found, *_ = _search(
-        eval_plan, [config.seed + config.eval_seed_offset], config, "screening the evaluation set", progress
+        eval_plan, [config.seed + config.eval_seed_offset], config, "screening the evaluation set", progress, trunk
     )
     ev = {k: [] for k in ("u", "controls", "intent", "intensity", "variant")}
     for (m, z), vs in eval_plan.items():
@@ -279,6 +281,8 @@ def build(config: BuildConfig = BuildConfig(), progress: bool = True) -> tuple[d
         },
         "regenerate": REGENERATE,
     }
+    if sim.resolve_trunk(trunk) is not None:  # the shipped card stays as it was: no key = the shipped trunk
+        card["trunk"] = sim.trunk_identity(trunk)
     return arrays, card
 
 

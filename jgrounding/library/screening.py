@@ -81,21 +81,28 @@ CHECKS = ("bounds", "smooth", "feasible", "semantic")
 
 
 def screen(
-    raw: np.ndarray, u: np.ndarray, intent: np.ndarray, *, simulate: bool = True, intensity: np.ndarray | None = None
+    raw: np.ndarray,
+    u: np.ndarray,
+    intent: np.ndarray,
+    *,
+    simulate: bool = True,
+    intensity: np.ndarray | None = None,
+    trunk: str | None = None,
 ) -> dict[str, np.ndarray]:
     """Checks for reconstructions ``raw`` ``(B, T, N_u)`` and their gated form ``u``; intents ``(B,)``.
 
     Returns a dict of boolean ``(B,)`` arrays, one per check in :data:`CHECKS`, plus ``"accepted"``.
     ``simulate=False`` runs only the checks that need no trunk model (bounds and slew, smoothness), for
     any number of tendons N_u; the simulated checks need the built-in 4-tendon trunk. ``intensity``
-    ``(B,)`` grades the reach and proximity a rule asks for; without it the emphatic grade applies.
+    ``(B,)`` grades the reach and proximity a rule asks for; without it the emphatic grade applies. ``trunk``: the
+    MJCF simulated (a fitted trunk; None, the shipped one).
     """
     bounds = (raw.min(axis=(1, 2)) >= -MAX_OVERSHOOT) & (raw.max(axis=(1, 2)) <= 1 + MAX_OVERSHOOT)
     bounds &= np.array([safety.is_safe(x) for x in u])
     smooth = np.abs(np.diff(u, n=3, axis=1)).max(axis=(1, 2)) <= MAX_JERK
     if not simulate:
         return {"bounds": bounds, "smooth": smooth, "accepted": bounds & smooth}
-    rollout = sim.rollout(u, engine="native")
+    rollout = sim.rollout(u, engine="native", trunk=trunk)
     feats = sim.features(rollout)
     semantic = np.zeros(len(u), dtype=bool)
     for m, name in enumerate(INTENTS):

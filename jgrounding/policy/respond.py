@@ -136,13 +136,23 @@ class Responder:
     what a server answers most.
     """
 
-    def __init__(self, checkpoint=None, *, allow_library_mismatch: bool = False, backend: str = "embedded"):
+    def __init__(
+        self,
+        checkpoint=None,
+        *,
+        allow_library_mismatch: bool = False,
+        backend: str = "embedded",
+        trunk: str | None = None,
+    ):
         if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
             raise TypeError(f"checkpoint must be a directory path (str or pathlib.Path), got {type(checkpoint)}")
         self.checkpoint = None if checkpoint is None else str(checkpoint)
         self.allow_library_mismatch = bool(allow_library_mismatch)
         self.backend = backend
         self.warmed = False
+        from jgrounding import sim
+
+        self.trunk = sim.resolve_trunk(trunk)  # what screening simulates (None: the shipped trunk)
 
     @functools.cached_property
     def model(self):
@@ -258,6 +268,7 @@ class Responder:
                 checkpoint=self.checkpoint,
                 allow_library_mismatch=self.allow_library_mismatch,
                 current=current,
+                trunk=self.trunk,
                 **options,
             )
             return Outcome(decision, res.u, screened=res)

@@ -21,6 +21,7 @@ import functools
 import json
 import logging
 import time
+import warnings
 from pathlib import Path
 
 import jax
@@ -221,6 +222,7 @@ def sample(
     screen: bool = False,
     allow_library_mismatch: bool = False,
     config: SampleConfig | None = None,
+    trunk: str | None = None,
 ) -> np.ndarray:
     """Sample tendon actuation for (intent, intensity) tuples (names or indices).
 
@@ -246,6 +248,8 @@ def sample(
         generator that inpaints over spline controls (the shipped models); ``ValueError`` otherwise.
       screen: simulate candidates on the trunk and return only feasible ones (:func:`screened`, which also
         reports how many were rejected); raises :class:`ScreeningError` if too few pass within its budget.
+      trunk: the trunk MJCF screening simulates (a fitted one, ``python -m jgrounding.sim calibrate``; None: the
+        shipped trunk); a trunk other than the one the checkpoint's library was screened on is warned about.
       allow_library_mismatch: use a checkpoint trained on another library version (refused otherwise).
       config: a :class:`~jgrounding.config.SampleConfig` (sampler, steps, guidance w, noise scale T), used
         as given instead of the checkpoint's recorded settings (:func:`default_config` gives those);
@@ -277,6 +281,7 @@ def sample(
             start_conditioned=start_conditioned,
             allow_library_mismatch=allow_library_mismatch,
             config=config,
+            trunk=trunk,
         ).u
     loaded, config = request(sampler, steps, config, checkpoint, allow_library_mismatch)
     return loaded.sample(
@@ -318,6 +323,7 @@ def screened(
     start_conditioned: bool = False,
     allow_library_mismatch: bool = False,
     config: SampleConfig | None = None,
+    trunk: str | None = None,
 ) -> Screened:
     """Screened sampling: draw candidates, roll them out on the trunk in one batch per round and keep the
     feasible ones (:func:`jgrounding.sim.feasible`: stable, contact force within bounds, slow tip near
@@ -331,6 +337,8 @@ def screened(
       budget: candidates per tuple at most (default ``max(SCREEN_BUDGET, 4 * num_samples)``, capped at
         ``MAX_SAMPLES``).
       engine: :func:`jgrounding.sim.rollout` engine (``auto``: native on CPU, MJX on an accelerator).
+      trunk: the trunk MJCF simulated (None: the shipped trunk); a trunk other than the one the checkpoint's
+        library was screened on is warned about (:func:`jgrounding.sim.trunk_mismatch`), naming both.
     Returns:
       :class:`Screened`: ``u`` shaped as :func:`sample` returns it, the candidates simulated, how many
       were rejected, the rounds and the simulation time. Round r draws with ``fold_in(key, r)``.
@@ -352,9 +360,13 @@ def screened(
             f"budget must be an integer in num_samples..{MAX_SAMPLES} (here {num_samples}..{MAX_SAMPLES}: "
             f"candidates per tuple), got {budget!r}"
         )
-    engine = sim.resolve_engine(engine)
+    trunk = sim.resolve_trunk(trunk)
+    engine = sim.resolve_engine(engine, trunk)
     key = as_key(key)
     loaded, config = request(sampler, steps, config, checkpoint, allow_library_mismatch)
+    why = sim.trunk_mismatch((loaded.trained.library or {}).get("trunk"), trunk)
+    if why:
+        warnings.warn(f"checkpoint {loaded.name}: its library was {why}", stacklevel=2)
     draw = functools.partial(loaded.sample, config=config, current=current, start_conditioned=start_conditioned)
     single = as_sequence(intent) is None and as_sequence(intensity) is None
     kept, drawn, passed, seconds, rounds = None, 0, 0, 0.0, 0
@@ -371,7 +383,7 @@ def screened(
                 f"has {u.shape[-1]} tendons"
             )
         t0 = time.perf_counter()
-        ok = (sim.margins(u.reshape(-1, *u.shape[-2:]), engine=engine) >= 0).reshape(u.shape[:2])
+        ok = (sim.margins(u.reshape(-1, *u.shape[-2:]), engine=engine, trunk=trunk) >= 0).reshape(u.shape[:2])
         seconds += time.perf_counter() - t0
         kept = kept or [[] for _ in range(len(u))]
         for j in range(len(u)):

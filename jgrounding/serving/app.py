@@ -51,10 +51,17 @@ class Policy:
     model (or a lab's ``checkpoint``) and the grounding, loaded and compiled once. Groundings are snapped onto
     the checkpoint's tuples and held or moved exactly as the CLI does."""
 
-    def __init__(self, checkpoint: str | Path | None = None, allow_library_mismatch: bool = False, warm: bool = True):
+    def __init__(
+        self,
+        checkpoint: str | Path | None = None,
+        allow_library_mismatch: bool = False,
+        warm: bool = True,
+        trunk: str | None = None,
+    ):
         from jgrounding.policy.respond import Responder
 
-        self.responder = Responder(checkpoint, allow_library_mismatch=allow_library_mismatch)
+        self.responder = Responder(checkpoint, allow_library_mismatch=allow_library_mismatch, trunk=trunk)
+        self.trunk = self.responder.trunk  # the simulated trunk of screening, replies' backbones and the stream
         self.checkpoint = self.responder.checkpoint
         self.allow_library_mismatch = self.responder.allow_library_mismatch
         self.responder.model  # noqa: B018  (refusals happen here, at start)
@@ -87,12 +94,11 @@ class Policy:
     def sample(self, key, intent, intensity, num_samples=1, **kwargs) -> np.ndarray:
         return self.responder.trajectory(key, intent, intensity, num_samples, **kwargs)
 
-    @staticmethod
-    def rollout(u: np.ndarray) -> np.ndarray:
+    def rollout(self, u: np.ndarray) -> np.ndarray:
         """Backbone positions ``(T, 11, 3)`` of the simulated trunk for one trajectory ``(T, N_u)``."""
         from jgrounding import sim
 
-        return sim.rollout(u[None], engine="native").backbone[0].astype(np.float32)
+        return sim.rollout(u[None], engine="native", trunk=self.trunk).backbone[0].astype(np.float32)
 
 
 # --- the server ------------------------------------------------------------------------------------------------

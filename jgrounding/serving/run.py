@@ -80,13 +80,15 @@ def serve(
     limits: Limits = Limits(),
     allow_library_mismatch: bool = False,
     log_level: str = "info",
+    trunk: str | None = None,
 ) -> None:
-    """Load the model once and serve until interrupted (what ``python -m jgrounding.serve`` runs)."""
+    """Load the model once and serve until interrupted (what ``python -m jgrounding.serve`` runs); ``trunk``: the
+    MJCF simulated (screening, backbones, the stream's trunk; None: the shipped trunk)."""
     import uvicorn
 
     check_bind(host, token)
     t0 = time.perf_counter()
-    policy = Policy(checkpoint, allow_library_mismatch)
+    policy = Policy(checkpoint, allow_library_mismatch, trunk=trunk)
     print(
         f"jgrounding serve: model {policy.model_info['checkpoint']} (library {policy.model_info['library_version']}) "
         f"loaded and compiled in {time.perf_counter() - t0:.1f} s",

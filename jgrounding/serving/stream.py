@@ -92,12 +92,12 @@ class SimulatedTrunk:
     """The built-in trunk of :mod:`jgrounding.sim`, stepped one control step (``SUBSTEPS`` physics steps) per
     streamed command; :meth:`step` returns its backbone ``(NUM_POINTS, 3)``."""
 
-    def __init__(self):
+    def __init__(self, trunk: str | None = None):
         import mujoco
 
         from jgrounding import sim
 
-        self.model = sim.load_model()
+        self.model = sim.load_model(trunk)
         self.data = mujoco.MjData(self.model)
         self._mj_step, self.substeps, self.points = mujoco.mj_step, sim.SUBSTEPS, sim.NUM_POINTS
 
@@ -155,7 +155,8 @@ class Stream:
         self.responses = 0
         self.stopping = self.done = self.closed = False
         self.task: asyncio.Task | None = None
-        self.sim = SimulatedTrunk() if sim and n == NUM_TENDONS else None  # the built-in trunk only
+        trunk = getattr(self.policy, "trunk", None)
+        self.sim = SimulatedTrunk(trunk) if sim and n == NUM_TENDONS else None  # the built-in trunk only
 
     def heard(self) -> None:
         self.last_heard = time.monotonic()

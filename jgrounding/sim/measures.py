@@ -56,9 +56,13 @@ def user_distance(points: np.ndarray) -> np.ndarray:
     return np.minimum(torso, head).min(axis=-1)
 
 
-def finish_rollout(backbone, tendon, touch) -> Rollout:
+def finish_rollout(backbone, tendon, touch, rest_tip=None) -> Rollout:
+    """The :class:`Rollout` of simulated points; ``rest_tip``: the tip at rest before the first step (default: the
+    shipped trunk's, hanging straight down from the base)."""
     tip = backbone[:, :, -1]
-    start = np.broadcast_to(BASE_POSITION - np.array([0, 0, tm.TRUNK_LENGTH]), tip[:, :1].shape)
+    if rest_tip is None:
+        rest_tip = BASE_POSITION - np.array([0, 0, tm.TRUNK_LENGTH])
+    start = np.broadcast_to(np.asarray(rest_tip, np.float64), tip[:, :1].shape)
     tip_speed = np.linalg.norm(np.diff(np.concatenate([start, tip], 1), axis=1), axis=-1) / CONTROL_DT
     stable = (
         np.all(np.isfinite(backbone), axis=(1, 2, 3))

@@ -1,5 +1,5 @@
-"""MJCF builder for the tendon-driven soft elephant trunk; ``python -m jgrounding.sim.model`` writes its output to
-``jgrounding/assets/trunk.xml``.
+"""MJCF builder for the tendon-driven soft elephant trunk; ``python -m jgrounding.sim.model`` writes it (the shipped
+``jgrounding/assets/trunk.xml``, or a trunk from its TOML description).
 
 The trunk hangs from the robot's "face" (base at z = BASE_HEIGHT) and is a tapered chain of
 ``NUM_SEGMENTS`` capsules. Every joint between segments has two bending hinges (about x and y) and a
@@ -34,6 +34,12 @@ contact can be measured. Contacts are explicit ``<pair>``s of the torso with the
 
 from __future__ import annotations
 
+import dataclasses
+import math
+import numbers
+import tomllib
+from pathlib import Path
+
 from jgrounding.io import asset
 
 NUM_SEGMENTS = 10
@@ -61,21 +67,129 @@ CONTACT_SEGMENTS = 5
 DEFAULT_PATH = asset("trunk.xml")
 
 
+@dataclasses.dataclass(frozen=True)
+class TrunkParams:
+    """Every named parameter of the trunk (SPEC section 9); the defaults are the shipped, hand-tuned trunk.
+
+    Lengths in metres, stiffness in N m/rad (hinges) or N/m (slides), damping in N m s/rad or N s/m, force in N,
+    density in kg/m^3, ``hinge_range`` in degrees, ``delay`` in seconds. Root and tip values are interpolated
+    geometrically along the chain (a taper). ``delay`` holds every tendon command back by that time (MuJoCo's
+    actuator delay); 0 adds nothing to the model.
+    """
+
+    segments: int = NUM_SEGMENTS
+    length: float = TRUNK_LENGTH
+    base_radius: float = BASE_RADIUS
+    tip_radius: float = TIP_RADIUS
+    routing_root: float = BASE_RADIUS  # tendon routing radius at the root (moment arm of a pull)
+    routing_tip: float = TIP_RADIUS
+    segment_taper: float = 0.45  # the tip segment is this much shorter than the root one (fraction)
+    stiffness_root: float = ROOT_STIFFNESS
+    stiffness_tip: float = TIP_STIFFNESS
+    damping_root: float = ROOT_DAMPING
+    damping_tip: float = TIP_DAMPING
+    tendon_force: float = MAX_TENDON_FORCE  # N at u = 1
+    slide_stiffness: float = SLIDE_STIFFNESS
+    slide_damping: float = 8.0
+    slide_range: float = SLIDE_RANGE
+    density: float = 350.0
+    hinge_armature: float = 0.0005
+    slide_armature: float = 0.01
+    hinge_range: float = 60.0
+    delay: float = 0.0
+
+    def __post_init__(self):
+        if isinstance(self.segments, bool) or not isinstance(self.segments, int) or not 2 <= self.segments <= 64:
+            raise ValueError(f"TrunkParams.segments must be an integer in [2, 64], got {self.segments!r}")
+        for f in dataclasses.fields(self)[1:]:
+            value = getattr(self, f.name)
+            low_ok = value >= 0 if f.name in NON_NEGATIVE else value > 0
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or not low_ok:
+                bound = ">= 0" if f.name in NON_NEGATIVE else "> 0"
+                raise ValueError(f"TrunkParams.{f.name} must be a finite number {bound}, got {value!r}")
+        if not self.segment_taper < 1:
+            raise ValueError(f"TrunkParams.segment_taper must be < 1, got {self.segment_taper!r}")
+        if not self.hinge_range <= 180:
+            raise ValueError(f"TrunkParams.hinge_range must be <= 180 degrees, got {self.hinge_range!r}")
+
+    def replace(self, **changes) -> TrunkParams:
+        return dataclasses.replace(self, **changes)
+
+
+NON_NEGATIVE = ("segment_taper", "hinge_armature", "slide_armature", "slide_damping", "delay")
+PARAMETER_NAMES = tuple(f.name for f in dataclasses.fields(TrunkParams))
+
+
+def load_config(path: str | Path) -> TrunkParams:
+    """The :class:`TrunkParams` a TOML file describes: top-level ``name = value`` lines (or a ``[trunk]`` table), any
+    subset of :data:`PARAMETER_NAMES`; the others keep their defaults. Unknown names are refused, naming the valid."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"trunk description {path} not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"{path}: not valid TOML: {e}") from None
+    return from_mapping(data.get("trunk", data), source=str(path))
+
+
+def from_mapping(data: dict, *, source: str = "trunk description") -> TrunkParams:
+    """:class:`TrunkParams` from ``{name: value}``; unknown names are refused."""
+    unknown = sorted(set(data) - set(PARAMETER_NAMES))
+    if unknown:
+        raise ValueError(f"{source}: unknown trunk parameters {unknown}; valid: {', '.join(PARAMETER_NAMES)}")
+    values = {
+        k: float(v) if k != "segments" and isinstance(v, int) and not isinstance(v, bool) else v
+        for k, v in data.items()
+    }
+    return TrunkParams(**values)
+
+
+def to_mapping(params: TrunkParams) -> dict:
+    return dataclasses.asdict(params)
+
+
+def to_toml(params: TrunkParams) -> str:
+    """The TOML text of ``params`` (what :func:`load_config` reads back)."""
+    return "".join(f"{k} = {v!r}\n" for k, v in to_mapping(params).items())
+
+
 def _taper(a: float, b: float, i: int, n: int) -> float:
     """Geometric interpolation from a (root) to b (tip) at joint i of n."""
     return a * (b / a) ** (i / max(n - 1, 1))
 
 
-def segment_lengths(n: int = NUM_SEGMENTS) -> list[float]:
-    w = [1.0 - 0.45 * i / (n - 1) for i in range(n)]  # proximal segments longer
+def _g(x: float) -> str:
+    """A number as MJCF text: integers without a point, other values in full precision."""
+    x = float(x)
+    return str(int(x)) if x.is_integer() else repr(x)
+
+
+def segment_lengths(n: int = NUM_SEGMENTS, params: TrunkParams | None = None) -> list[float]:
+    p = params or TrunkParams(segments=n)
+    w = [1.0 - p.segment_taper * i / (n - 1) for i in range(n)]  # proximal segments longer
     s = sum(w)
-    return [TRUNK_LENGTH * x / s for x in w]
+    return [p.length * x / s for x in w]
 
 
-def build_xml(n: int = NUM_SEGMENTS, contact: bool = True, contact_segments: int = CONTACT_SEGMENTS) -> str:
-    """MJCF text of the trunk with ``n`` segments; contact pairs of the user's torso with the last
-    ``contact_segments`` segments (none with ``contact=False``)."""
-    lengths = segment_lengths(n)
+def build_xml(
+    n: int | None = None,
+    contact: bool = True,
+    contact_segments: int = CONTACT_SEGMENTS,
+    *,
+    params: TrunkParams | None = None,
+    exact: bool = False,
+) -> str:
+    """MJCF text of the trunk ``params`` describes (default: the shipped trunk; ``n`` overrides its segments);
+    contact pairs of the user's torso with the last ``contact_segments`` segments (none with ``contact=False``).
+    ``exact``: hinge stiffness and damping in full precision (a fitted trunk), not the shipped file's 4 decimals."""
+    p = params or TrunkParams()
+    if n is not None:
+        p = p.replace(segments=n)
+    n = p.segments
+    contact_segments = min(contact_segments, n)
+    fmt = repr if exact else (lambda v: f"{v:.4f}")
+    lengths = segment_lengths(n, p)
     lines = [
         '<mujoco model="elephant_trunk">',
         "  <!-- Generated by python -m jgrounding.sim.model; do not edit by hand. -->",
@@ -85,7 +199,7 @@ def build_xml(n: int = NUM_SEGMENTS, contact: bool = True, contact_segments: int
         "  </option>",
         "  <default>",
         # No geom collides by default: the only contacts are the explicit <pair>s below.
-        '    <geom contype="0" conaffinity="0" friction="0.6 0.005 0.0001" solref="0.02 1" density="350"/>',
+        f'    <geom contype="0" conaffinity="0" friction="0.6 0.005 0.0001" solref="0.02 1" density="{_g(p.density)}"/>',
         "  </default>",
         '  <visual><global offwidth="640" offheight="480"/></visual>',
         "  <asset>",
@@ -113,22 +227,18 @@ def build_xml(n: int = NUM_SEGMENTS, contact: bool = True, contact_segments: int
     z = BASE_HEIGHT
     for i in range(n):
         L = lengths[i]
-        r = _taper(BASE_RADIUS, TIP_RADIUS, i, n)
-        k = _taper(ROOT_STIFFNESS, TIP_STIFFNESS, i, n)
-        d = _taper(ROOT_DAMPING, TIP_DAMPING, i, n)
+        r = _taper(p.base_radius, p.tip_radius, i, n)
+        k = fmt(_taper(p.stiffness_root, p.stiffness_tip, i, n))
+        d = fmt(_taper(p.damping_root, p.damping_tip, i, n))
+        hinge = f'range="-{_g(p.hinge_range)} {_g(p.hinge_range)}" armature="{_g(p.hinge_armature)}"'
         pos = f"0 0 {z:.4f}" if i == 0 else f"0 0 {-lengths[i - 1]:.4f}"
         lines.append(f'{indent}<body name="seg{i}" pos="{pos}">')
+        lines.append(f'{indent}  <joint name="bx{i}" type="hinge" axis="1 0 0" stiffness="{k}" damping="{d}" {hinge}/>')
+        lines.append(f'{indent}  <joint name="by{i}" type="hinge" axis="0 1 0" stiffness="{k}" damping="{d}" {hinge}/>')
         lines.append(
-            f'{indent}  <joint name="bx{i}" type="hinge" axis="1 0 0" stiffness="{k:.4f}"'
-            f' damping="{d:.4f}" range="-60 60" armature="0.0005"/>'
-        )
-        lines.append(
-            f'{indent}  <joint name="by{i}" type="hinge" axis="0 1 0" stiffness="{k:.4f}"'
-            f' damping="{d:.4f}" range="-60 60" armature="0.0005"/>'
-        )
-        lines.append(
-            f'{indent}  <joint name="sl{i}" type="slide" axis="0 0 1" stiffness="{SLIDE_STIFFNESS}"'
-            f' damping="8" range="0 {SLIDE_RANGE}" limited="true" armature="0.01"/>'
+            f'{indent}  <joint name="sl{i}" type="slide" axis="0 0 1" stiffness="{float(p.slide_stiffness)!r}"'
+            f' damping="{_g(p.slide_damping)}" range="0 {float(p.slide_range)!r}" limited="true"'
+            f' armature="{_g(p.slide_armature)}"/>'
         )
         lines.append(
             f'{indent}  <geom name="g{i}" type="capsule" fromto="0 0 0 0 0 {-L:.4f}" size="{r:.4f}" material="skin"/>'
@@ -158,16 +268,19 @@ def build_xml(n: int = NUM_SEGMENTS, contact: bool = True, contact_segments: int
     for name, axis, sign in sides:
         lines.append(f'    <fixed name="{name}">')
         for i in range(n):
-            r = _taper(BASE_RADIUS, TIP_RADIUS, i, n)
+            r = _taper(p.routing_root, p.routing_tip, i, n)
             lines.append(f'      <joint joint="{axis}{i}" coef="{sign * r:.5f}"/>')
             lines.append(f'      <joint joint="sl{i}" coef="-1"/>')
         lines.append("    </fixed>")
     lines.append("  </tendon>")
+    # A command delay: MuJoCo keeps each motor's recent commands (nsample of them, linearly interpolated) and
+    # applies the one of ``delay`` seconds ago; before time 0 the command was 0 (at rest).
+    delay = f' nsample="{math.ceil(p.delay / TIMESTEP) + 2}" interp="linear" delay="{p.delay!r}"' if p.delay else ""
     lines.append("  <actuator>")
     for name, _, _ in sides:
         lines.append(
-            f'    <motor name="m_{name}" tendon="{name}" gear="{-MAX_TENDON_FORCE}" ctrlrange="0 1"'
-            ' ctrllimited="true"/>'
+            f'    <motor name="m_{name}" tendon="{name}" gear="{-float(p.tendon_force)!r}" ctrlrange="0 1"'
+            f' ctrllimited="true"{delay}/>'
         )
     lines.append("  </actuator>")
     # Sensors read by the native rollout (mujoco.rollout returns sensordata): the backbone (segment

@@ -72,9 +72,9 @@ def warp_unavailable() -> str | None:
     return None
 
 
-@functools.lru_cache(maxsize=4)
-def _model(contact: bool, impl: str = "jax"):
-    m = copy.copy(load_model(None, contact))  # a copy: the cached native model keeps its sensors
+@functools.lru_cache(maxsize=8)
+def _model(trunk: str | None, contact: bool, impl: str = "jax"):
+    m = copy.copy(load_model(trunk, contact))  # a copy: the cached native model keeps its sensors
     if impl == "jax":
         m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
     body_ids = np.array([m.body(f"seg{i}").id for i in range(measures.NUM_SEGMENTS)])
@@ -111,8 +111,8 @@ def compiler_options() -> dict | None:
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled_warp(contact: bool, chunk: int):
-    m, mx, _, _ = _model(contact, "warp")
+def _compiled_warp(trunk: str | None, contact: bool, chunk: int):
+    m, mx, _, _ = _model(trunk, contact, "warp")
     d0 = mjx.make_data(
         m, impl="warp", naconmax=WARP_CONTACTS_PER_TRUNK * chunk, njmax=WARP_ROWS_PER_TRUNK
     )  # naconmax counts every world of the batch
@@ -129,8 +129,8 @@ def _compiled_warp(contact: bool, chunk: int):
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled(contact: bool):
-    m, mx, body_ids, tip_id = _model(contact)
+def _compiled(trunk: str | None, contact: bool):
+    m, mx, body_ids, tip_id = _model(trunk, contact)
 
     def one(u):  # u: (T, 4)
         d0 = mjx.make_data(mx)
@@ -153,10 +153,22 @@ def _compiled(contact: bool):
 def lower_rollout(batch: int, contact: bool = True):
     """The compiled-to-be MJX rollout program for a chunk of ``batch`` trunks, traced and lowered (``jax.stages.
     Lowered``): what :func:`rollout_mjx` compiles, for measuring its compile time (``.compile()``)."""
-    return _compiled(contact).lower(jnp.zeros((batch, measures.NUM_STEPS, measures.NUM_CHANNELS), jnp.float32))
+    return _compiled(None, contact).lower(jnp.zeros((batch, measures.NUM_STEPS, measures.NUM_CHANNELS), jnp.float32))
 
 
-def rollout_warp(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:
+def _rest_tip(trunk: str | None, contact: bool):
+    """A trunk of its own: its tip at rest (None for the shipped trunk, whose tip hangs straight down)."""
+    if trunk is None:
+        return None
+    m = _model(trunk, contact)[0]
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    return d.site_xpos[m.site("tip").id].copy()
+
+
+def rollout_warp(
+    u: np.ndarray, contact: bool = True, chunk: int | None = None, trunk: str | None = None
+) -> measures.Rollout:
     """``(B, T, 4)`` validated commands -> :class:`measures.Rollout` via MJX's Warp implementation (float32), in
     padded chunks of ``chunk`` (default: the whole batch). Raises ``RuntimeError`` naming the reason where Warp
     cannot run (:func:`warp_unavailable`)."""
@@ -165,22 +177,24 @@ def rollout_warp(u: np.ndarray, contact: bool = True, chunk: int | None = None) 
         raise RuntimeError(f'engine "mjx-warp" cannot run here: {why}; valid engines here: auto, native, mjx')
     u = jnp.asarray(u, jnp.float32)
     chunk = chunk or u.shape[0]
-    fn = _compiled_warp(contact, chunk)
+    fn = _compiled_warp(trunk, contact, chunk)
     outs = []
     for i in range(0, u.shape[0], chunk):
         part = u[i : i + chunk]
         pad = chunk - part.shape[0]
         outs.append(np.asarray(jax.device_get(fn(jnp.pad(part, ((0, pad), (0, 0), (0, 0))))))[: chunk - pad])
-    return from_sensordata(np.concatenate(outs).astype(np.float64))
+    return from_sensordata(np.concatenate(outs).astype(np.float64), _rest_tip(trunk, contact))
 
 
-def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -> measures.Rollout:
+def rollout_mjx(
+    u: np.ndarray, contact: bool = True, chunk: int | None = None, trunk: str | None = None
+) -> measures.Rollout:
     """``(B, T, 4)`` validated commands -> :class:`measures.Rollout` via MJX (float32).
 
     With ``chunk``, the batch runs as padded chunks of that size, so one compiled program serves every
     batch size (compilation, not execution, dominates on CPU).
     """
-    fn = _compiled(contact)
+    fn = _compiled(trunk, contact)
     u = jnp.asarray(u, jnp.float32)
     if chunk is None or u.shape[0] == chunk:
         outs = [jax.device_get(fn(u))]
@@ -193,5 +207,8 @@ def rollout_mjx(u: np.ndarray, contact: bool = True, chunk: int | None = None) -
             outs.append(tuple(x[: chunk - pad] for x in res))
     points, tendon, touch = (np.concatenate(x) for x in zip(*outs))
     return measures.finish_rollout(
-        np.asarray(points, np.float64), np.asarray(tendon, np.float64), np.asarray(touch, np.float64)
+        np.asarray(points, np.float64),
+        np.asarray(tendon, np.float64),
+        np.asarray(touch, np.float64),
+        _rest_tip(trunk, contact),
     )

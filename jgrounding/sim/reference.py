@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim.measures import CONTROL_DT
 
 RECORD_HZ = 120  # samples per second of the recordings (4 per control step)

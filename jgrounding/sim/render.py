@@ -97,8 +97,10 @@ def _fade_user(model, renderer) -> None:
             g.rgba[3] = USER_ALPHA
 
 
-def _frames_mujoco(u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool) -> list[list[np.ndarray]]:
-    model = sim.load_model()
+def _frames_mujoco(
+    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool, trunk: str | None = None
+) -> list[list[np.ndarray]]:
+    model = sim.load_model(trunk)
     data, rest = mujoco.MjData(model), mujoco.MjData(model)
     mujoco.mj_forward(model, rest)
     renderer = mujoco.Renderer(model, HEIGHT, WIDTH)
@@ -149,15 +151,15 @@ def plot_backbone(ax, backbone, *, color="tab:gray", alpha: float = 1.0, user: b
 
 
 def _frames_matplotlib(
-    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool
+    u: np.ndarray, steps: list[int], views: tuple[float, ...], ghost: bool, trunk: str | None = None
 ) -> list[list[np.ndarray]]:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    backbone = sim.rollout(u).backbone[0]
-    rest = sim.rollout(np.zeros((1, sim.NUM_CHANNELS))).backbone[0, 0]
+    backbone = sim.rollout(u, trunk=trunk).backbone[0]
+    rest = sim.rollout(np.zeros((1, sim.NUM_CHANNELS)), trunk=trunk).backbone[0, 0]
     frames = []
     for t in steps:
         tiles = []
@@ -178,7 +180,14 @@ def _frames_matplotlib(
 
 
 def frames(
-    u, steps: list[int], azimuth=SIDE_VIEW, backend: str = "auto", *, labels: bool = False, ghost: bool = False
+    u,
+    steps: list[int],
+    azimuth=SIDE_VIEW,
+    backend: str = "auto",
+    *,
+    labels: bool = False,
+    ghost: bool = False,
+    trunk: str | None = None,
 ) -> tuple[list[np.ndarray], str]:
     """RGB frames of the motion of actuation ``(T, 4)`` at the given control steps, and the backend used.
 
@@ -187,6 +196,7 @@ def frames(
     ``(HEIGHT, n_views * WIDTH, 3)``. ``labels`` writes each view's name in its corner; ``ghost`` draws
     the rest posture (all tendons slack) as a thin blue rod, for comparison.
     ``backend``: "auto" (MuJoCo's renderer, matplotlib if GL cannot start), "mujoco" or "matplotlib".
+    ``trunk``: the MJCF shown (a fitted trunk; None: the shipped one).
     """
     if backend not in ("auto", "mujoco", "matplotlib"):
         raise ValueError(f"unknown backend {backend!r}; valid: auto, mujoco, matplotlib")
@@ -198,13 +208,13 @@ def frames(
     tiles, used = None, "matplotlib"
     if backend != "matplotlib":
         try:
-            tiles, used = _frames_mujoco(u, steps, views, ghost), "mujoco"
+            tiles, used = _frames_mujoco(u, steps, views, ghost, trunk), "mujoco"
         except Exception as e:  # no GL context on this machine: fall back
             if backend == "mujoco":
                 raise
             log.info("MuJoCo renderer unavailable (%s); using matplotlib", e)
     if tiles is None:
-        tiles = _frames_matplotlib(u, steps, views, ghost)
+        tiles = _frames_matplotlib(u, steps, views, ghost, trunk)
     if labels:
         tiles = [[_label(f, VIEW_NAMES.get(a, f"azimuth {a:g} deg")) for f, a in zip(ts, views)] for ts in tiles]
     return [np.concatenate(ts, axis=1) for ts in tiles], used
@@ -237,14 +247,14 @@ def _stamp(t: int) -> str:
     return f"t = {t * sim.CONTROL_DT:.2f} s"
 
 
-def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS, title: str = "") -> Path:
+def render_posture(u, path, step: int = -1, azimuth=BOTH_VIEWS, title: str = "", trunk: str | None = None) -> Path:
     """PNG of the posture at control ``step`` of actuation ``(150, 4)`` (default: both views, labelled),
     under ``title`` and the step's time stamp."""
     from jgrounding.io import write_atomic
 
     n = np.asarray(u).shape[-2]
     step = step % n
-    (img,), _ = frames(u, [step], azimuth, labels=True)
+    (img,), _ = frames(u, [step], azimuth, labels=True, trunk=trunk)
     return write_atomic(path, _png(_titled(img, f"{title}   {_stamp(step)}" if title else _stamp(step))))
 
 
@@ -255,15 +265,19 @@ def motion_steps(n: int, stride: int = 5) -> list[int]:
     return sorted(set(range(0, n, stride)) | {n - 1})
 
 
-def motion_frames(u, stride: int = 5, azimuth=BOTH_VIEWS, title: str = "") -> tuple[list[int], list[np.ndarray]]:
+def motion_frames(
+    u, stride: int = 5, azimuth=BOTH_VIEWS, title: str = "", trunk: str | None = None
+) -> tuple[list[int], list[np.ndarray]]:
     """The frames of :func:`render_motion`: the control steps shown (from t = 0) and one RGB picture per step,
     each under ``title`` and its time stamp."""
     steps = motion_steps(np.asarray(u).shape[-2], stride)
-    imgs, _ = frames(u, steps, azimuth, labels=True)
+    imgs, _ = frames(u, steps, azimuth, labels=True, trunk=trunk)
     return steps, [_titled(f, f"{title}   {_stamp(t)}" if title else _stamp(t)) for f, t in zip(imgs, steps)]
 
 
-def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS, title: str = "") -> Path:
+def render_motion(
+    u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS, title: str = "", trunk: str | None = None
+) -> Path:
     """Animated GIF of actuation ``(150, 4)``, one frame every ``stride`` control steps from t = 0 to the last
     step (default: both views), each frame under ``title`` (e.g. the text and its tuple) and its time stamp.
 
@@ -273,7 +287,7 @@ def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS
 
     from jgrounding.io import write_atomic
 
-    _, imgs = motion_frames(u, stride, azimuth, title)
+    _, imgs = motion_frames(u, stride, azimuth, title, trunk)
     pil = [Image.fromarray(f) for f in imgs]
     buf = io.BytesIO()
     pil[0].save(buf, format="GIF", save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
@@ -283,7 +297,9 @@ def render_motion(u, path, stride: int = 5, fps: float = 6.0, azimuth=BOTH_VIEWS
 KEYFRAME_STEPS = (0, 30, 60, 90, 120, 149)  # t = 0, 1, 2, 3, 4, 5 s
 
 
-def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6, title: str = "") -> np.ndarray:
+def keyframes(
+    u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6, title: str = "", trunk: str | None = None
+) -> np.ndarray:
     """One RGB picture of the postures of actuation ``(T, 4)`` at ``steps`` (columns) from each view (rows),
     each tile ``scale`` times the frame size and labelled with its time (the first column with its view),
     under ``title`` when one is given (e.g. the text and its tuple).
@@ -294,7 +310,7 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6, title: str 
     if steps is None:
         n = np.asarray(u).shape[-2]
         steps = KEYFRAME_STEPS if n == sim.NUM_STEPS else tuple(np.linspace(0, n - 1, 6).astype(int))
-    imgs, _ = frames(u, list(steps), views)
+    imgs, _ = frames(u, list(steps), views, trunk=trunk)
     w, h = int(WIDTH * scale), int(HEIGHT * scale)
     rows = []
     for v, a in enumerate(views):
@@ -308,8 +324,8 @@ def keyframes(u, steps=None, azimuth=BOTH_VIEWS, scale: float = 0.6, title: str 
     return _titled(picture, title) if title else picture
 
 
-def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS, title: str = "") -> Path:
+def render_keyframes(u, path, steps=None, azimuth=BOTH_VIEWS, title: str = "", trunk: str | None = None) -> Path:
     """PNG of :func:`keyframes`: the motion of actuation ``(150, 4)`` at a glance, under ``title``."""
     from jgrounding.io import write_atomic
 
-    return write_atomic(path, _png(keyframes(u, steps, azimuth, title=title), colors=256))
+    return write_atomic(path, _png(keyframes(u, steps, azimuth, title=title, trunk=trunk), colors=256))

@@ -22,8 +22,11 @@ from pathlib import Path
 DEFAULT_PORT = 8766
 
 
-def serve(design_path, db="study.db", host="127.0.0.1", port=DEFAULT_PORT, token=None, checkpoint=None) -> None:
-    """Serve a study until interrupted (``python -m jgrounding.study serve``)."""
+def serve(
+    design_path, db="study.db", host="127.0.0.1", port=DEFAULT_PORT, token=None, checkpoint=None, trunk=None
+) -> None:
+    """Serve a study until interrupted (``python -m jgrounding.study serve``); ``trunk``: the MJCF the episodes'
+    simulated trunk runs on (a fitted one; None: the shipped trunk)."""
     import uvicorn
 
     from jgrounding.serving import WS_MAX_SIZE, Policy, check_bind
@@ -37,7 +40,7 @@ def serve(design_path, db="study.db", host="127.0.0.1", port=DEFAULT_PORT, token
     policy = None
     if design.needs_model:
         t0 = time.perf_counter()
-        policy = Policy(checkpoint)
+        policy = Policy(checkpoint, trunk=trunk)
         print(f"jgrounding study: model loaded and compiled in {time.perf_counter() - t0:.1f} s", flush=True)
     server = StudyServer(design, store, policy, token)
     n = len(store.participants(server.session_id))
@@ -92,6 +95,7 @@ def main(argv=None) -> int:
     s.add_argument("--port", type=int, default=DEFAULT_PORT)
     s.add_argument("--token", default=None, help="a token pages and clients must send (needed beyond loopback)")
     s.add_argument("--checkpoint", default=None, help="a lab's checkpoint instead of the shipped model")
+    s.add_argument("--trunk", default=None, help="the trunk MJCF simulated (a fitted one; default: the shipped trunk)")
     a = sub.add_parser("analyze", help="analyse a study's database")
     a.add_argument("db", help="SQLite file or SQLAlchemy URL")
     a.add_argument("--out", default="study_analysis", help="folder for report.md, report.json, the figure")
@@ -119,7 +123,7 @@ def main(argv=None) -> int:
 
     try:
         if args.command == "serve":
-            serve(args.design, args.db, args.host, args.port, args.token, args.checkpoint)
+            serve(args.design, args.db, args.host, args.port, args.token, args.checkpoint, args.trunk)
         elif args.command == "analyze":
             analyze(args.db, args.out, args.session, args.exclude_withdrawn)
         elif args.command == "simulate":
@@ -134,7 +138,7 @@ def main(argv=None) -> int:
             store = Store(args.db)
             paths = export(store, args.out, _session(store, args.session))
             print("\n".join(str(p) for p in paths))
-    except (DesignError, ValueError, RuntimeError) as e:
+    except (DesignError, ValueError, RuntimeError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 0

@@ -208,6 +208,8 @@ def meta_of(trained: Trained) -> dict:
         meta["library_version"] = lib["version"]
     if lib.get("path") and Path(lib["path"]).is_file():
         meta["library_sha256"] = io.sha256_file(lib["path"])
+    if lib.get("trunk"):  # the trunk its library was screened on (path, sha256): jg.sample(screen=True) compares
+        meta["trunk"] = lib["trunk"]
     return meta
 
 
@@ -286,6 +288,7 @@ def restore_trained(path, method: str | None = None, *, allow_library_mismatch: 
         "sha256": meta.get("library_sha256"),
         "path": meta.get("library_path"),
         "tuples": trained_tuples(meta),
+        "trunk": meta.get("trunk"),
     }
     return Trained(
         name,

@@ -139,7 +139,7 @@ def finetune(
         u = np.asarray(draw(params, k_gen))  # (S, 64, C, T, 4)
         flat = u.reshape(-1, *u.shape[-2:])
         t0 = time.perf_counter()
-        margin = sim.margins(flat, engine=physics.engine).reshape(u.shape[:3])
+        margin = sim.margins(flat, engine=physics.engine, trunk=physics.trunk).reshape(u.shape[:3])
         seconds = time.perf_counter() - t0
         keep = margin >= physics.margin
         report.append(
@@ -162,4 +162,7 @@ def finetune(
         states = jax.vmap(lambda p, k: training.init_state(p, k, config))(params, keys)
         states, _ = run(states, encoding.encode(jnp.asarray(targets)))  # controls in [-1, 1], as the methods train
         params = training.eval_params(states)
-    return dataclasses.replace(teacher, params=params, losses=None), report
+    library_id = dict(teacher.library or {})
+    if sim.resolve_trunk(physics.trunk) is not None:  # its checkpoint records the trunk it was screened on
+        library_id["trunk"] = sim.trunk_identity(physics.trunk)
+    return dataclasses.replace(teacher, params=params, losses=None, library=library_id), report

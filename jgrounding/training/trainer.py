@@ -27,6 +27,8 @@ def library_identity(library) -> dict:
     out = {"version": meta.get("library_version", "1 (unversioned)")}
     if getattr(library, "path", None):
         out["path"] = str(library.path)
+    if meta.get("trunk"):  # screened on a trunk of its own (a fitted one); no key: the shipped trunk
+        out["trunk"] = meta["trunk"]
     return out
 
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from jgrounding.sim import model as tm
+from jgrounding.sim import mjcf as tm
 from jgrounding.sim import reference
 
 ELEMENTS, STEPS = 12, 36  # coarse and short: 1.2 s of motion

@@ -31,7 +31,7 @@ import numpy as np
 
 from jgrounding.library.importer import parse
 from jgrounding.library.importer.errors import DemonstrationError
-from jgrounding.sim.model import TRUNK_LENGTH
+from jgrounding.sim.mjcf import TRUNK_LENGTH
 
 MARKER_UNITS = {"m": 1.0, "mm": 1e-3}  # declared unit -> metres per unit
 MAX_MARKER_GAP_S = 0.05  # a marker missing this long (or less) is interpolated; longer rejects the recording
