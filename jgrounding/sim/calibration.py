@@ -1,6 +1,6 @@
 """Fit the trunk to recordings with MuJoCo's system identification (``mujoco.sysid``).
 
-What is fitted: named parameters of :class:`jgrounding.sim.model.TrunkParams` (by default the hinge stiffness and
+What is fitted: named parameters of :class:`jgrounding.sim.mjcf.TrunkParams` (by default the hinge stiffness and
 damping at root and tip, the tendon force at u = 1, the slide stiffness, the segment density and the command
 delay), each inside its box bounds. How: sysid's box-constrained Gauss-Newton (``mujoco.minimize.least_squares``)
 with finite-difference Jacobians, each evaluation one batched ``mujoco.rollout`` of every recording under every
@@ -16,7 +16,7 @@ damping and mass scale together).
 The command delay is MuJoCo's actuator delay (each motor applies the command of ``delay`` seconds ago; the
 history is at rest before time 0), so a fitted trunk file simulates its delay by itself.
 
-Every candidate model is built from its :class:`TrunkParams` by :func:`jgrounding.sim.model.build_xml` (full
+Every candidate model is built from its :class:`TrunkParams` by :func:`jgrounding.sim.mjcf.build_xml` (full
 precision), the same builder that writes the fitted file: what was fitted is what is written.
 """
 

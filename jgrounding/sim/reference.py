@@ -88,13 +88,13 @@ class RodParameters:
 PARAMETERS = RodParameters()
 
 SOURCES = {
-    "length": "the trunk's design: jgrounding.sim.model.TRUNK_LENGTH",
-    "base_radius": "the trunk's design: jgrounding.sim.model.BASE_RADIUS",
-    "tip_radius": "the trunk's design: jgrounding.sim.model.TIP_RADIUS (geometric taper, as the capsules')",
-    "base_height": "the trunk's design: jgrounding.sim.model.BASE_HEIGHT (the base mount, the frame origin + z)",
+    "length": "the trunk's design: jgrounding.sim.mjcf.TRUNK_LENGTH",
+    "base_radius": "the trunk's design: jgrounding.sim.mjcf.BASE_RADIUS",
+    "tip_radius": "the trunk's design: jgrounding.sim.mjcf.TIP_RADIUS (geometric taper, as the capsules')",
+    "base_height": "the trunk's design: jgrounding.sim.mjcf.BASE_HEIGHT (the base mount, the frame origin + z)",
     "tendon_angles_deg": "the trunk's design: tendons 0-3 at +x, +y, -x, -y (jgrounding.sim.model)",
     "routing_fraction": "the trunk's design: the MuJoCo trunk routes each tendon at the segment's radius",
-    "max_tendon_force": "the trunk's design: jgrounding.sim.model.MAX_TENDON_FORCE, the pull at u = 1",
+    "max_tendon_force": "the trunk's design: jgrounding.sim.mjcf.MAX_TENDON_FORCE, the pull at u = 1",
     "youngs_modulus": "Smooth-On Dragon Skin 30 technical bulletin: 100% modulus 86 psi = 0.593 MPa, taken as "
     "the Young's modulus (a platinum-cure silicone commonly cast for cable-driven soft arms)",
     "poisson_ratio": "rubber is nearly incompressible (nu = 0.5; PyElastica's default for soft rods), so G = E / 3",

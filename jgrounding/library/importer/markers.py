@@ -9,7 +9,7 @@ A JSON manifest declares the markers::
     "max_marker_gap_s": 0.05       # optional, the default
 
 ``s`` is the arc length from the base along the undeformed backbone in metres (``"tip"``: the trunk's length,
-:data:`jgrounding.sim.model.TRUNK_LENGTH`). Positions are in the world frame of the trunk model: the base at
+:data:`jgrounding.sim.mjcf.TRUNK_LENGTH`). Positions are in the world frame of the trunk model: the base at
 ``(0, 0, BASE_HEIGHT)``, z up, the trunk hanging along -z, the user at +x. The marker columns are sampled on
 the recording's own clock, in the same rows as the tendon columns; a missing sample is an empty cell or NaN.
 
