@@ -404,7 +404,7 @@ def speed_goal_line(rows: dict) -> str:
     six = rows.get("torch_eager_minilm6")
     met_ms, met_ratio = avx2 and ground <= GOALS["ms_median"], ratio >= 2.0
     return (
-        f"#34's speed goal: `jg.ground` {ground:.2f} ms warm median "
+        f"The speed goal: `jg.ground` {ground:.2f} ms warm median "
         f"({'AVX2 only' if avx2 else 'AVX-512 in use: the 5 ms goal is not judged here'}): 5 ms goal "
         f"{'met' if met_ms else 'not met'}; against the eager peer on the same weights {ratio:.2f}x (goal 2x: "
         f"{'met' if met_ratio else 'not met'})"

@@ -200,7 +200,7 @@ def write(
     checks_34 = blind_goal_rows(res, list(v3))
     lines += [
         "",
-        "#### Goals of #34 (the frozen blind benches; the v2 test split for the motion styles they do not hold)",
+        "#### The goals (the frozen blind benches; the v2 test split for the motion styles they do not hold)",
         "",
         "Second reader: the same measure of the bench's second reading (`second_reader.jsonl`: a helper who saw "
         "only the texts and a labelling brief labelled every text again), where it has one; a human reading has no "

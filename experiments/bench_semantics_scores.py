@@ -19,7 +19,7 @@ from jgrounding.vocabulary import INTENSITIES, INTENTS
 ROOT = Path(__file__).resolve().parent.parent
 REDUCERS = {
     "new": "trained head, structure-aware (jg.ground)",
-    "old": "first trained head (#15)",
+    "old": "first trained head",
     "cues": "cue-list reducer (baseline)",
 }
 SECOND_READER = "second reader"  # a blind bench's second human-style reading (second_reader.jsonl), a reference row

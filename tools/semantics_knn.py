@@ -1,4 +1,4 @@
-"""A nearest-neighbour vote over the training texts, blended with the shipped tuned head (#24, dev only).
+"""A nearest-neighbour vote over the training texts, blended with the shipped tuned head (dev only).
 
     python -m tools.semantics_knn          # compare the variants: results/semantics_dev_knn.json
     python -m tools.semantics_knn --write  # the best variant of CHOICES: jgrounding/assets/semantic_knn.npz
@@ -44,7 +44,7 @@ REPORT = ROOT / "results" / "semantics_dev_knn.json"
 # "hold-out": 320 texts from docs/semantics_writing_brief.md (a brief that says which situations call for which
 # behaviour); "blind": data.SITUATION_DEVS, as the head's calibration reads them: 256 texts from
 # docs/semantics_blind_brief.md (the intents' descriptions and the style, as the v2 evaluation set's writer had them)
-# and, since the eighth session, a second writer's 320 from the same brief.
+# and a second writer's 320 from the same brief.
 HOLDOUTS = {
     "hold-out": semantic_sets.files("dev/situations_holdout"),
     "blind": data.SITUATION_DEVS,
@@ -55,11 +55,8 @@ VOTE_ROWS = semantic_sets.files("train/vote")
 # The shipped variant, chosen on v2 dev: the tuned sentence vector; the table without the templated generated
 # corpus; the vote only for texts that read as a situation; the centre of the (k, a) region where the variants of
 # this family pass the ship rule; the head's own temperature (no refit on the blend), the threshold refitted.
-# (A head retrained with a second situations corpus and a vote for every text, chosen on the situation hold-out,
-# did worse on the frozen v2 test and was not kept: docs/how_it_works.md.)
-# The seventh session added an intensity vote (b: its weight; 0: none) from the same neighbours, and a table that
-# also holds the blind writers' training situations (data.BLIND_TRAIN); both are chosen on v2 dev as the rest
-# (:data:`CHOICES`).
+# An intensity vote (b: its weight; 0: none) from the same neighbours, and a table that also holds the blind
+# writers' training situations (data.BLIND_TRAIN), are chosen on v2 dev as the rest (:data:`CHOICES`).
 CHOSEN = dict(representation="sentence", table="no-generated", gate="no motion words", k=10, tau=0.05, a=0.5, b=0.0)
 # The variants of the chosen family that `--write` (and `--chosen-only`) scores through the shipped blend: each
 # table, with and without the intensity vote. The one written is the highest v2 dev score among those that pass
