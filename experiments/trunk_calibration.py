@@ -33,6 +33,7 @@ from jgrounding.sim import mjcf as tm
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "results" / "trunk_calibration"
+FITTED = ROOT / "results" / "trunk_reference_fitted.xml"  # the trunk fitted to the reference (--reference)
 MARKERS = (("mid", 0.35), ("tip", tm.TRUNK_LENGTH))
 BENCH_PARAMETERS = (*cal.FIT_PARAMETERS, "slide_damping", "hinge_armature")
 GOAL_REL, GOAL_RMS = 0.05, 0.001
@@ -175,7 +176,13 @@ def against_reference(folder: Path, fit_count: int | None, max_iters: int) -> di
     print(f"against the reference: fitting on {len(train)} recordings, judging on {len(evaluation)}", flush=True)
     res = cal.calibrate(train, settings=cal.Settings(validation=0.0, max_iters=max_iters), log=print)
     fitted, hand = mean_rms(evaluation, res.fitted), mean_rms(evaluation, tm.TrunkParams())
+    from jgrounding.sim import calibration_report
+
+    # The fitted trunk, with its provenance, for what runs on it next (Table II's physics columns, screening).
+    FITTED.parent.mkdir(parents=True, exist_ok=True)
+    calibration_report.write(res, FITTED, train, str(folder / "train"), html=False, log=print)
     return {
+        "fitted_trunk": str(FITTED.relative_to(ROOT)) if FITTED.is_relative_to(ROOT) else str(FITTED),
         "command": f"python -m experiments.trunk_calibration --reference {folder}"
         + (f" --fit-count {fit_count}" if fit_count else ""),
         "fit": len(train),
