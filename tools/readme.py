@@ -321,6 +321,18 @@ def _replace_block(text: str, start: str, end: str, body: str, where: Path) -> s
     return f"{head}{start}\n{body}\n{end}{tail}"
 
 
+def first_table(path: Path) -> str:
+    """The first Markdown table of a results file, as it is."""
+    lines, inside = [], False
+    for line in path.read_text().splitlines():
+        if line.startswith("|"):
+            inside = True
+            lines.append(line)
+        elif inside:
+            break
+    return "\n".join(lines)
+
+
 def gpu_block(path: Path) -> str:
     """results/gpu.md for docs/versions.md, said to be from another stack (or a tiny CPU run) when it is."""
     import jax
@@ -367,6 +379,17 @@ def update(
             ),
         )
         print(f"updated the trunk benchmark in {versions}")
+    acting = ROOT / "docs" / "acting.md"  # the act/hold decision's tables, from its two runs
+    if acting.exists():
+        text = acting.read_text()
+        for marker, source in (("dev", "nomotion_frontier.md"), ("frozen", "bench_acting.md")):
+            if (RESULTS / source).exists():
+                table = first_table(RESULTS / source)
+                text = _replace_block(
+                    text, f"<!-- acting:{marker}:start -->", f"<!-- acting:{marker}:end -->", table, acting
+                )
+        write_atomic(acting, text)
+        print(f"updated the decision's tables in {acting}")
     gpu = RESULTS / "gpu.md"  # bash scripts/device_check.sh
     if versions.exists() and gpu.exists() and "<!-- bench:gpu:start -->" in versions.read_text():
         write_atomic(
