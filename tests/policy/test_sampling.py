@@ -173,7 +173,7 @@ def test_screened_samples_all_pass_the_simulator_and_the_rejections_are_counted(
 
 
 def test_screening_that_cannot_pass_raises_a_clear_error(monkeypatch):
-    monkeypatch.setattr(sim, "margins", lambda u, engine="auto": -np.ones(len(u)))  # nothing is feasible
+    monkeypatch.setattr(sim, "margins", lambda u, engine="auto", trunk=None: -np.ones(len(u)))  # nothing is feasible
     with pytest.raises(sampling.ScreeningError, match="budget of 8 candidates"):
         sampling.screened(jax.random.key(0), "nodding", "emphatic", num_samples=2, budget=8)
 

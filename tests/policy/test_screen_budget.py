@@ -17,7 +17,7 @@ def test_default_budget_is_capped_and_errors_name_the_users_parameter(monkeypatc
 
     sampling.default_config()  # the model loaded (and self-tested) before the fake replaces its sampler
     monkeypatch.setattr(sampling.Model, "sample", fake_sample)  # what screened draws each round with
-    monkeypatch.setattr(sim, "margins", lambda u, engine=None: np.ones(len(u)))
+    monkeypatch.setattr(sim, "margins", lambda u, engine=None, trunk=None: np.ones(len(u)))
     res = sampling.screened(jax.random.key(0), "nodding", "moderate", num_samples=1025)
     assert res.u.shape == (1025, 150, 4) and 1025 <= sum(drawn) <= sampling.MAX_SAMPLES
     with pytest.raises(ValueError, match=r"num_samples must be an integer in 1..4096, got 4097"):
