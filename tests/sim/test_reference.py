@@ -36,6 +36,7 @@ def test_commands_are_checked():
         reference.Rod(4)
 
 
+@pytest.mark.slow  # a fresh venv compiles PyElastica's numba kernels first (about 90 s on 2 cores), then seconds
 def test_the_rod_hangs_and_bends_toward_the_pulled_tendon():
     rest = np.zeros((STEPS, 4))
     nodes = reference.simulate(rest, n_elements=ELEMENTS)
@@ -55,6 +56,7 @@ def test_the_rod_hangs_and_bends_toward_the_pulled_tendon():
     assert np.allclose(clean[:, -1], nodes[:-1, -1]) and 0.3e-3 < np.std(markers - clean) < 0.7e-3
 
 
+@pytest.mark.slow
 def test_the_quick_generation_writes_recordings_that_read_back(tmp_path):
     from experiments import trunk_reference
 
