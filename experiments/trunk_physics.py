@@ -1,4 +1,5 @@
-"""Table II's physics columns on two trunks, and the library's screening on the second:
+"""Table II's physics columns and the library's screening on the hand-tuned trunk and on a fitted one.
+
 ``python -m experiments.trunk_physics --trunk results/trunk_reference_fitted.xml [--runs runs/ablation]``.
 
 Nothing is retrained. The methods ``python -m experiments.ablation`` saved under ``--runs`` are restored and draw
@@ -174,7 +175,9 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--trunk", required=True, help="the fitted trunk's MJCF (python -m jgrounding.sim calibrate)")
     p.add_argument("--runs", default="runs/ablation", help="the checkpoints python -m experiments.ablation saved")
-    p.add_argument("--methods", help=f"comma-separated subset (default: every one in --runs of {', '.join(DISPLAY)})")
+    p.add_argument(
+        "--methods", help=f"comma-separated subset (default: those of {', '.join(methods.ABLATION_ROWS)} in --runs)"
+    )
     p.add_argument("--per-tuple", type=int, help="samples simulated per tuple (default: the run's physics_samples)")
     p.add_argument("--ablation", default="results", help="folder of the ablation.json the hand-tuned column is checked")
     p.add_argument("--out", default="results/trunk_physics", help="writes <out>.md and <out>.json")
@@ -188,7 +191,7 @@ def main(argv=None) -> int:
     if not runs.is_dir():
         p.error(f"--runs {runs} is not a folder: run python -m experiments.ablation first (it saves runs/ablation)")
     saved = [m for m in methods.ALL_METHODS if (runs / m / "meta.json").is_file()]
-    names = args.methods.split(",") if args.methods else saved
+    names = args.methods.split(",") if args.methods else [m for m in saved if m in methods.ABLATION_ROWS]
     missing = [m for m in names if m not in saved]
     if not names or missing:
         p.error(f"no checkpoint in {runs} for {missing or 'any method'}; saved there: {', '.join(saved) or 'none'}")
@@ -201,6 +204,8 @@ def main(argv=None) -> int:
     if not 1 <= per_tuple <= ev_cfg.num_samples:
         p.error(f"--per-tuple must be in 1..{ev_cfg.num_samples} (the run's samples per tuple), got {per_tuple}")
     order = ablation.rows_of(cfg)  # the ablation's order: method i drew its samples with fold_in(key, i)
+    if set(names) - set(order):
+        p.error(f"{', '.join(sorted(set(names) - set(order)))}: not a row of that run; its rows: {', '.join(order)}")
     lib = load_library(ev_cfg.library)
     trunks = {"hand_tuned": None, "fitted": trunk}
     t0 = time.perf_counter()
