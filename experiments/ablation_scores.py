@@ -64,14 +64,24 @@ def public_row(lib, cfg: Config, r, current, draws: int = 5) -> Scores:
     return distribution_row(u, ho.intent, ho.intensity, ev, r)
 
 
+def samples(trained, lib, cfg, cond_eval, key, mesh=None) -> np.ndarray:
+    """The K_div = ``cfg.eval.num_samples`` samples of every held-out tuple that :func:`evaluate` scores, ``u (S, 64,
+    K, T, N_u)``: drawn with the first half of the method's ``key`` at ``cfg.sample.steps`` steps, so a checkpoint
+    the ablation saved gives them again (``experiments.trunk_physics``)."""
+    config = dataclasses.replace(trained.resolve(None), steps=cfg.sample.steps)
+    k_gen = jax.random.split(key)[0]
+    return generate.generate(
+        trained, cond_eval, lib.heldout.intensity, k_gen, num_samples=cfg.eval.num_samples, config=config, mesh=mesh
+    )
+
+
 def evaluate(method, trained, lib, cfg, cond_eval, key, mesh=None):
     ho = lib.heldout
-    k_gen, k_lat = jax.random.split(key)
+    k_lat = jax.random.split(key)[1]
     config = dataclasses.replace(trained.resolve(None), steps=cfg.sample.steps)
-    gen = dict(num_samples=cfg.eval.num_samples, config=config, mesh=mesh)
-    generate.generate(trained, cond_eval, ho.intensity, k_gen, **gen)  # compile
+    samples(trained, lib, cfg, cond_eval, key, mesh)  # compile
     t0 = time.perf_counter()
-    u = generate.generate(trained, cond_eval, ho.intensity, k_gen, **gen)
+    u = samples(trained, lib, cfg, cond_eval, key, mesh)
     batch_s = time.perf_counter() - t0
     r = np.asarray(metrics.rms(u, ho.u[None, :, None]))  # (S, 64, K)
     div = np.asarray(metrics.pairwise_diversity(u)).mean(axis=1)  # (S,)
