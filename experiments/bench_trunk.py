@@ -236,7 +236,12 @@ def bisect(stacks=BISECT_STACKS, venvs: Path = ROOT / "runs" / "bisect") -> list
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--batches", default="64,256,1920")
-    p.add_argument("--chunk", type=int, default=256)
+    p.add_argument(
+        "--chunk",
+        type=int,
+        default=trunk_mjx.CPU_MAX_CHUNK,
+        help="MJX's padded chunk (on the CPU at most jgrounding.sim.mjx.CPU_MAX_CHUNK)",
+    )
     p.add_argument("--compile", action="store_true", help="measure where MJX compile time goes, then exit")
     p.add_argument("--only", help="with --compile: only the variants whose label contains this text")
     p.add_argument(

@@ -46,6 +46,11 @@ def enable_compilation_cache(path: str | Path | None = None) -> None:
 
 
 IMPLS = {"mjx": "jax", "mjx-warp": "warp"}  # engine name -> MJX implementation
+# On the CPU, XLA 0.10.2 runs the rollout program of 64 trunks or more into a deadlock: it waits at 0 % CPU forever
+# inside Eigen's multi-threaded kernels (48 trunks run; XLA_FLAGS=--xla_cpu_multi_thread_eigen=false runs 64 too, but
+# that flag is process-wide and would slow every other program, and it is not honoured per program). So on the CPU
+# engine "mjx" runs batches as chunks of at most this many trunks; accelerators keep their large chunks.
+CPU_MAX_CHUNK = 32
 # MuJoCo Warp allocates contacts for all worlds of a batch and constraint rows per world up front. The trunk touches
 # the user through CONTACT_SEGMENTS capsule pairs (at most 2 contacts each); each contact has 4 pyramid rows.
 WARP_CONTACTS_PER_TRUNK = 16
@@ -194,6 +199,8 @@ def rollout_mjx(
     With ``chunk``, the batch runs as padded chunks of that size, so one compiled program serves every
     batch size (compilation, not execution, dominates on CPU).
     """
+    if jax.default_backend() == "cpu":  # chunk=None is the whole batch, which may be above the CPU's bound
+        chunk = min(chunk or u.shape[0], CPU_MAX_CHUNK)
     fn = _compiled(trunk, contact)
     u = jnp.asarray(u, jnp.float32)
     if chunk is None or u.shape[0] == chunk:
