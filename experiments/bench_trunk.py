@@ -114,7 +114,7 @@ COMPILE_VARIANTS = (  # (label, contact, pairs, what[, "xla-default": without jg
         f"chunk{sim.MJX_CHUNK}",
     ),
     (
-        "the same program for a chunk of 256 (bench trunk's chunk)",
+        "the same program for a chunk of 256",
         "1",
         str(tm.CONTACT_SEGMENTS),
         "chunk256",
