@@ -92,7 +92,7 @@ SOURCES = {
     "base_radius": "the trunk's design: jgrounding.sim.mjcf.BASE_RADIUS",
     "tip_radius": "the trunk's design: jgrounding.sim.mjcf.TIP_RADIUS (geometric taper, as the capsules')",
     "base_height": "the trunk's design: jgrounding.sim.mjcf.BASE_HEIGHT (the base mount, the frame origin + z)",
-    "tendon_angles_deg": "the trunk's design: tendons 0-3 at +x, +y, -x, -y (jgrounding.sim.model)",
+    "tendon_angles_deg": "the trunk's design: tendons 0-3 at +x, +y, -x, -y (jgrounding.sim.mjcf)",
     "routing_fraction": "the trunk's design: the MuJoCo trunk routes each tendon at the segment's radius",
     "max_tendon_force": "the trunk's design: jgrounding.sim.mjcf.MAX_TENDON_FORCE, the pull at u = 1",
     "youngs_modulus": "Smooth-On Dragon Skin 30 technical bulletin: 100% modulus 86 psi = 0.593 MPa, taken as "
