@@ -9,6 +9,7 @@ import importlib.resources
 import os
 import stat
 import tempfile
+import tomllib
 from pathlib import Path
 
 
@@ -146,3 +147,15 @@ def enable_compilation_cache(path: str | Path | None = None, *, min_compile_secs
     except Exception:  # pragma: no cover - private API; without it the cache starts with the next process
         pass
     return str(path)
+
+
+def read_toml(path: str | os.PathLike, what: str) -> dict:
+    """A TOML file's tables: ``FileNotFoundError`` naming ``what`` when it is missing, ``ValueError`` naming the file
+    when it is not valid TOML (the trunk description and the calibration settings read this way)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} {path} not found")
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"{path}: not valid TOML: {e}") from None

@@ -39,7 +39,6 @@ import dataclasses
 import functools
 import json
 import re
-import warnings
 
 from jgrounding.io import asset
 from jgrounding.semantics import nomotion, structure
@@ -172,14 +171,11 @@ def point() -> OperatingPoint:
     from jgrounding.semantics import head as semantic_head
 
     p = read_point()
-    digest = semantic_head.load().meta.get("params_digest")
-    if p.meta.get("head_digest") != digest:
-        warnings.warn(
-            f"{POINT_ASSET.name} was fitted for head {p.meta.get('head_digest')}, the shipped head is {digest}: every "
-            "kind of text uses the head's calibrated threshold until `python -m tools.nomotion_frontier --write` "
-            "fits it again",
-            stacklevel=2,
-        )
+    if semantic_head.made_for_another_head(
+        p.meta,
+        f"{POINT_ASSET.name} was fitted for head {{made}}, the shipped head is {{shipped}}: every kind of text uses the "
+        "head's calibrated threshold until `python -m tools.nomotion_frontier --write` fits it again",
+    ):
         return fallback_point()
     return p
 

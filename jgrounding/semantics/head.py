@@ -461,6 +461,20 @@ class Head:
         return self.encoder if self.encoder is not None else encoder.load_params()
 
 
+def made_for_another_head(meta: dict, message: str) -> bool:
+    """Whether an asset fitted on the shipped head's outputs (its ``meta["head_digest"]``) was made for another head
+    than the shipped one; if so, warns with ``message`` (``{made}``: the asset's head, ``{shipped}``: the shipped
+    head's digest), attributed to the caller's caller. The learned detector and the act/hold operating point check
+    themselves this way."""
+    shipped = load().meta.get("params_digest")
+    if meta.get("head_digest") == shipped:
+        return False
+    import warnings
+
+    warnings.warn(message.format(made=meta.get("head_digest"), shipped=shipped), stacklevel=3)
+    return True
+
+
 @functools.lru_cache(maxsize=4)
 def load(path: str | None = None) -> Head:
     """The shipped head (``jgrounding/assets/semantic_head.npz``); ``FileNotFoundError`` says how to regenerate it. A tuned

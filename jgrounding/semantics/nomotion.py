@@ -41,7 +41,6 @@ import dataclasses
 import functools
 import json
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -134,14 +133,11 @@ def detector() -> Detector | None:
     from jgrounding.semantics import head as semantic_head
 
     d = read_detector()
-    digest = semantic_head.load().meta.get("params_digest")
-    if d.meta.get("head_digest") != digest:
-        warnings.warn(
-            f"{DETECTOR_ASSET.name} was trained for head {d.meta.get('head_digest')}, the shipped head is {digest}: "
-            "the learned no-motion detector is off (only the rule decides) until `python -m tools.train_nomotion` "
-            "retrains it",
-            stacklevel=2,
-        )
+    if semantic_head.made_for_another_head(
+        d.meta,
+        f"{DETECTOR_ASSET.name} was trained for head {{made}}, the shipped head is {{shipped}}: the learned no-motion "
+        "detector is off (only the rule decides) until `python -m tools.train_nomotion` retrains it",
+    ):
         return None
     return d
 

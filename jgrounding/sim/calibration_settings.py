@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from pathlib import Path
 
+from jgrounding.io import read_toml
 from jgrounding.sim import mjcf as tm
 
 FIT_PARAMETERS = (
@@ -91,12 +91,10 @@ def load_settings(path: str | Path, **overrides) -> Settings:
     """:class:`Settings` from a TOML file: ``parameters = [...]``, ``validation``, ``seed``, ``max_iters`` and a
     ``[bounds]`` table of ``name = [low, high]``; ``overrides`` (not None) replace its values."""
     path = Path(path)
-    if not path.is_file():
-        raise CalibrationError(f"calibration settings {path} not found")
     try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise CalibrationError(f"{path}: not valid TOML: {e}") from None
+        data = read_toml(path, "calibration settings")
+    except (FileNotFoundError, ValueError) as e:
+        raise CalibrationError(str(e)) from None
     valid = ("parameters", "bounds", "validation", "seed", "max_iters", "restarts")
     unknown = sorted(set(data) - set(valid))
     if unknown:

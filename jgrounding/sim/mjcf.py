@@ -37,10 +37,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-import tomllib
 from pathlib import Path
 
-from jgrounding.io import asset
+from jgrounding.io import asset, read_toml
 
 NUM_SEGMENTS = 10
 TRUNK_LENGTH = 0.70  # m
@@ -123,13 +122,7 @@ PARAMETER_NAMES = tuple(f.name for f in dataclasses.fields(TrunkParams))
 def load_config(path: str | Path) -> TrunkParams:
     """The :class:`TrunkParams` a TOML file describes: top-level ``name = value`` lines (or a ``[trunk]`` table), any
     subset of :data:`PARAMETER_NAMES`; the others keep their defaults. Unknown names are refused, naming the valid."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"trunk description {path} not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{path}: not valid TOML: {e}") from None
+    data = read_toml(path, "trunk description")
     return from_mapping(data.get("trunk", data), source=str(path))
 
 

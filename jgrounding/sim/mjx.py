@@ -45,7 +45,6 @@ def enable_compilation_cache(path: str | Path | None = None) -> None:
     io.enable_compilation_cache(path, min_compile_secs=1.0)
 
 
-IMPLS = {"mjx": "jax", "mjx-warp": "warp"}  # engine name -> MJX implementation
 # On the CPU, XLA 0.10.2 runs the rollout program of 64 trunks or more into a deadlock: it waits at 0 % CPU forever
 # inside Eigen's multi-threaded kernels (48 trunks run; XLA_FLAGS=--xla_cpu_multi_thread_eigen=false runs 64 too, but
 # that flag is process-wide and would slow every other program, and it is not honoured per program). So on the CPU
