@@ -25,8 +25,11 @@ import tempfile
 import time
 from pathlib import Path
 
+import jax
+import mujoco
 import numpy as np
 
+from experiments import bench_sample
 from jgrounding import load_library, sim
 from jgrounding.evaluation import physics
 from jgrounding.io import write_atomic
@@ -261,9 +264,6 @@ def main(argv=None) -> int:
         write_atomic(ROOT / "results" / "mjx_compile_bisect.md", "\n".join(lines) + "\n")
         return 0
     if args.compile:
-        import jax
-        import mujoco
-
         from experiments.bench_sample import cpu_model, peak_gflops
 
         lines = compile_probe(args.only)
@@ -318,7 +318,9 @@ def main(argv=None) -> int:
         say(f"| {b} | {native:,.0f} | {mjx:,.0f} | {mjx / native:.3f}x | {1e3 * gap:.2f} mm |")
     say("")
     say(
-        f"{os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
+        f"{bench_sample.cpu_model()} ({bench_sample.cpu_isa()}), {os.cpu_count()} CPU cores, XLA_FLAGS="
+        f"{os.environ.get('XLA_FLAGS', '')!r}, jax {jax.__version__}, MuJoCo {mujoco.__version__}, load average "
+        f"{os.getloadavg()[0]:.2f}; native = mujoco.rollout, one thread per "
         f"core; MJX = jax on CPU, float32, every batch run as padded chunks of {args.chunk} (so B = 64 does a chunk's "
         "work: one compiled program serves every B). Commands: library trajectories, repeated to fill B."
     )
@@ -330,7 +332,6 @@ def main(argv=None) -> int:
 
 def screening_latency(say, reps: int = 20) -> None:
     """Latency of screened sampling (``jg.sample(..., screen=True)``) beside plain ``jg.sample``, warm, median."""
-    import jax
 
     from jgrounding.policy import sampling
 
